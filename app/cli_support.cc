@@ -1,0 +1,209 @@
+#include "app/cli_support.h"
+
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+namespace hnnstereo::app {
+namespace {
+
+std::string Trim(const std::string& text) {
+  const auto first = text.find_first_not_of(" \t\r\"'");
+  if (first == std::string::npos) return {};
+  const auto last = text.find_last_not_of(" \t\r\"'");
+  return text.substr(first, last - first + 1);
+}
+
+}  // namespace
+
+std::string FlatYamlConfig::to_config(const CLI::App* app, bool default_also, bool, std::string) const {
+  std::ostringstream out;
+  for (const CLI::Option* option : app->get_options()) {
+    if (option->get_lnames().empty() || option->get_configurable() == false) continue;
+    std::string value = option->as<std::string>();
+    if (value.empty() && default_also) value = option->get_default_str();
+    if (!value.empty()) out << option->get_lnames()[0] << ": " << value << "\n";
+  }
+  return out.str();
+}
+
+std::vector<CLI::ConfigItem> FlatYamlConfig::from_config(std::istream& input) const {
+  std::vector<CLI::ConfigItem> config_items;
+  std::string line;
+  int number = 0;
+  while (std::getline(input, line)) {
+    ++number;
+    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed == "---" || trimmed.rfind("%YAML", 0) == 0) continue;
+    const auto colon = trimmed.find(':');
+    if (colon == std::string::npos) {
+      throw CLI::ConversionError("config line " + std::to_string(number) + " is not 'key: value'");
+    }
+    CLI::ConfigItem item;
+    item.name = Trim(trimmed.substr(0, colon));
+    for (char& c : item.name) {
+      if (c == '_') c = '-';
+    }
+    std::string value = Trim(trimmed.substr(colon + 1));
+    if (!value.empty() && value.front() == '[' && value.back() == ']') {
+      std::istringstream list(value.substr(1, value.size() - 2));
+      std::string element;
+      while (std::getline(list, element, ',')) item.inputs.push_back(Trim(element));
+    } else {
+      item.inputs.push_back(value);
+    }
+    config_items.push_back(std::move(item));
+  }
+  return config_items;
+}
+
+void MatcherFlags::AddTo(CLI::App* cmd) {
+  auto& o = options;
+  cmd->add_option("--features", features,
+                  "Feature detector on both images: canny (default), susan-edge, susan-corner, "
+                  "moravec, sobel")
+      ->capture_default_str();
+  cmd->add_option("--max-features", o.features.max_features,
+                  "Cap on features per image, kept spread over the image (0 = no cap)")
+      ->capture_default_str();
+  cmd->add_option("--canny-low", o.features.canny_low, "Canny low threshold")->capture_default_str();
+  cmd->add_option("--canny-high", o.features.canny_high, "Canny high threshold")->capture_default_str();
+  cmd->add_option("--min-disparity", o.candidates.min_disparity,
+                  "Rectified pairs: smallest disparity x_left - x_right (px)")
+      ->capture_default_str();
+  cmd->add_option("--max-disparity", o.candidates.max_disparity,
+                  "Rectified pairs: largest disparity x_left - x_right (px)")
+      ->capture_default_str();
+  cmd->add_option("--zrange", zrange,
+                  "Calibrated pairs: ZMIN,ZMAX (mm) - a candidate whose triangulated point falls "
+                  "outside is not a neuron");
+  cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
+                  "Largest distance (px) of a candidate from its epipolar line")
+      ->capture_default_str();
+  cmd->add_option("--top-k", o.candidates.top_k,
+                  "Keep the K best-correlated candidates per left feature (0 = all)")
+      ->capture_default_str();
+  cmd->add_flag("--dense", o.candidates.dense,
+                "The thesis's all-pairs network: every left x right pair is a neuron and every "
+                "neuron is connected to every other (O((N_L N_R)^2) memory)");
+  cmd->add_option("--network", network,
+                  "feature (rows = left features, columns = right features) or disparity "
+                  "(columns = disparity levels; rectified pairs)")
+      ->capture_default_str();
+  cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
+      ->capture_default_str();
+  cmd->add_option("--engine", engine,
+                  "opencl (default; falls back to cpu with a notice when no OpenCL device "
+                  "exists), cpu (C++ reference of the parallel dynamics) or thesis (serial "
+                  "asynchronous updates on dense weights)")
+      ->capture_default_str();
+  cmd->add_option("--device", device,
+                  "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
+                  "first GPU, else the first device)");
+  cmd->add_option("--objective", objective,
+                  "Compatibility: thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
+                  "geometry-similarity")
+      ->capture_default_str();
+  cmd->add_option("--support-radius", o.energy.support_radius_px,
+                  "Sparse networks: connect neurons whose left features are within this many px")
+      ->capture_default_str();
+  cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
+  cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
+  cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
+  cmd->add_option("--D", o.energy.D, "Energy weight of the epipolar distance")->capture_default_str();
+  cmd->add_option("--lambda", o.energy.lambda, "eq. 6.6 slope")->capture_default_str();
+  cmd->add_option("--theta", o.energy.theta, "eq. 6.6 centre")->capture_default_str();
+  cmd->add_flag("--distance-attenuation", o.energy.distance_attenuation,
+                "Printed-code attenuation of weights between far-apart left features");
+  cmd->add_option("--activation", activation, "continuous (default) or discrete")
+      ->capture_default_str();
+  cmd->add_option("--alpha", o.dynamics.alpha, "Activation gain: V = (1 + tanh(u / alpha)) / 2")
+      ->capture_default_str();
+  cmd->add_option("--init", initial_state,
+                  "Initial state: off, on, random-binary, random, constant, constant-noise, "
+                  "correlation")
+      ->capture_default_str();
+  cmd->add_option("--seed", o.dynamics.seed, "Seed of random initial states and update order")
+      ->capture_default_str();
+  cmd->add_option("--dt", o.dynamics.time_step, "Euler time step (units of tau)")->capture_default_str();
+  cmd->add_option("--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines")
+      ->capture_default_str();
+  cmd->add_option("--max-updates", o.dynamics.max_updates,
+                  "Update limit of the thesis engine (thesis: 20000)")
+      ->capture_default_str();
+  cmd->add_option("--decode", decode, "thesis (row max, column max, threshold) or one-to-one")
+      ->capture_default_str();
+  cmd->add_option("--threshold", o.decode.threshold, "Minimum activation of an accepted match")
+      ->capture_default_str();
+  cmd->add_option("--memory-budget-mb", memory_budget_mb,
+                  "Refuse networks that need more memory than this (MB)")
+      ->capture_default_str();
+}
+
+void MatcherFlags::Resolve() {
+  auto& o = options;
+  if (auto d = vision::ParseFeatureDetector(features)) {
+    o.features.detector = *d;
+  } else {
+    throw std::invalid_argument("unknown --features '" + features + "'");
+  }
+  if (auto e = vision::ParseEngine(engine)) {
+    o.engine = *e;
+  } else {
+    throw std::invalid_argument("unknown --engine '" + engine + "' (opencl, cpu or thesis)");
+  }
+  if (auto obj = hnn::ParseObjective(objective)) {
+    o.energy.objective = *obj;
+  } else {
+    throw std::invalid_argument("unknown --objective '" + objective + "'");
+  }
+  if (auto s = hnn::ParseInitialState(initial_state)) {
+    o.dynamics.initial_state = *s;
+  } else {
+    throw std::invalid_argument("unknown --init '" + initial_state + "'");
+  }
+  if (activation == "continuous") {
+    o.dynamics.activation = hnn::Activation::kContinuous;
+  } else if (activation == "discrete") {
+    o.dynamics.activation = hnn::Activation::kDiscrete;
+  } else {
+    throw std::invalid_argument("unknown --activation '" + activation + "'");
+  }
+  if (auto m = hnn::ParseDecodeMethod(decode)) {
+    o.decode.method = *m;
+  } else {
+    throw std::invalid_argument("unknown --decode '" + decode + "'");
+  }
+  if (network == "feature") {
+    o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+  } else if (network == "disparity") {
+    o.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  } else {
+    throw std::invalid_argument("unknown --network '" + network + "' (feature or disparity)");
+  }
+  if (!zrange.empty()) {
+    double zmin = 0, zmax = 0;
+    char comma = 0;
+    std::istringstream in(zrange);
+    if (!(in >> zmin >> comma >> zmax) || comma != ',' || !(zmin < zmax)) {
+      throw std::invalid_argument("--zrange must be ZMIN,ZMAX with ZMIN < ZMAX (got '" + zrange + "')");
+    }
+    o.candidates.z_range_mm = std::make_pair(zmin, zmax);
+  }
+  if (!(memory_budget_mb > 0)) throw std::invalid_argument("--memory-budget-mb must be positive");
+  o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
+  if (auto error = o.Check(); !error.empty()) throw std::invalid_argument(error);
+}
+
+std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {
+  if (engine != hnn::EngineKind::kOpenCL) return nullptr;
+  ocl::DeviceSelection selection = ocl::DeviceSelection::FromEnvironment();
+  if (!device.empty()) selection.device = device;
+  std::string why_not;
+  auto runtime = ocl::Runtime::Create(selection, &why_not);
+  if (!runtime) std::cerr << "hnnstereo: notice: " << why_not << "; using the cpu engine\n";
+  return runtime;
+}
+
+}  // namespace hnnstereo::app

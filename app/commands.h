@@ -1,0 +1,12 @@
+#pragma once
+// Each subcommand registers itself on the CLI11 app; the work is done by library calls.
+
+#include <CLI/CLI.hpp>
+
+namespace hnnstereo::app {
+
+void AddMatchCommand(CLI::App& app);
+void AddBenchCommand(CLI::App& app);
+void AddCalibrateCommand(CLI::App& app);
+
+}  // namespace hnnstereo::app

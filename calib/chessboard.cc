@@ -1,0 +1,212 @@
+#include "calib/chessboard.h"
+
+#include <chrono>
+#include <filesystem>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/dlt.h"
+#include "calib/fundamental.h"
+
+namespace hnnstereo::calib {
+
+std::string ChessboardOptions::Check() const {
+  std::ostringstream out;
+  if (rows < 2 || cols < 2) {
+    out << "chessboard --rows and --cols (inner corners) must be >= 2 (are " << rows << ", "
+        << cols << ")";
+  } else if (!(square_mm > 0.0) || !std::isfinite(square_mm)) {
+    out << "chessboard --square must be > 0 mm (is " << square_mm << ")";
+  } else if (left_images.size() != right_images.size()) {
+    out << "chessboard: " << left_images.size() << " left images but " << right_images.size()
+        << " right images";
+  } else if (static_cast<int>(left_images.size()) < min_pairs) {
+    out << "chessboard: at least " << min_pairs << " image pairs are needed (got "
+        << left_images.size() << ")";
+  } else if (subpixel_window < 3) {
+    out << "chessboard subpixel_window must be >= 3 (is " << subpixel_window << ")";
+  }
+  return out.str();
+}
+
+std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Mat& image, int rows,
+                                                                    int cols,
+                                                                    int subpixel_window) {
+  cv::Mat grey;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  } else {
+    grey = image;
+  }
+  std::vector<cv::Point2f> corners;
+  const bool found = cv::findChessboardCorners(
+      grey, cv::Size(cols, rows), corners,
+      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+  if (!found) return std::nullopt;
+  cv::cornerSubPix(grey, corners, cv::Size(subpixel_window, subpixel_window), cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 30, 0.01));
+  std::vector<Eigen::Vector2d> points;
+  for (const cv::Point2f& p : corners) points.emplace_back(p.x, p.y);
+  return points;
+}
+
+CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
+  std::vector<cv::Point3f> board;
+  for (int r = 0; r < options.rows; ++r) {
+    for (int c = 0; c < options.cols; ++c) {
+      board.emplace_back(static_cast<float>(c * options.square_mm),
+                         static_cast<float>(r * options.square_mm), 0.f);
+    }
+  }
+  std::vector<std::vector<cv::Point3f>> object_points;
+  std::vector<std::vector<cv::Point2f>> corners[2];
+  std::vector<std::string> skipped;
+  cv::Size image_size[2];
+  cv::Mat first_image[2];
+  const char* names[2] = {"left", "right"};
+  for (size_t pair = 0; pair < options.left_images.size(); ++pair) {
+    std::optional<std::vector<Eigen::Vector2d>> found[2];
+    cv::Mat images[2];
+    for (int camera = 0; camera < 2; ++camera) {
+      const std::string& path =
+          camera == 0 ? options.left_images[pair] : options.right_images[pair];
+      if (!std::filesystem::is_regular_file(path)) {
+        throw std::runtime_error("chessboard image '" + path + "' does not exist");
+      }
+      images[camera] = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      if (images[camera].empty()) throw std::runtime_error("cannot read image '" + path + "'");
+      if (image_size[camera].area() == 0) {
+        image_size[camera] = images[camera].size();
+      } else if (images[camera].size() != image_size[camera]) {
+        throw std::runtime_error("image '" + path + "' differs in size from the first " +
+                                 names[camera] + " image");
+      }
+      found[camera] = DetectChessboardCorners(images[camera], options.rows, options.cols,
+                                              options.subpixel_window);
+      if (!found[camera]) skipped.push_back(path);
+    }
+    if (!found[0] || !found[1]) continue;
+    object_points.push_back(board);
+    for (int camera = 0; camera < 2; ++camera) {
+      std::vector<cv::Point2f> view;
+      for (const Eigen::Vector2d& p : *found[camera]) {
+        view.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+      }
+      corners[camera].push_back(view);
+      if (first_image[camera].empty()) first_image[camera] = images[camera];
+    }
+  }
+  if (static_cast<int>(object_points.size()) < options.min_pairs) {
+    throw std::runtime_error("the " + std::to_string(options.rows) + " x " +
+                             std::to_string(options.cols) + " inner-corner board was found in " +
+                             std::to_string(object_points.size()) + " pair(s), need " +
+                             std::to_string(options.min_pairs) +
+                             " (check --rows/--cols: inner corners, not squares)");
+  }
+
+  CalibrationResult result;
+  result.report.method = "chessboard";
+  result.report.num_views = static_cast<int>(object_points.size());
+  cv::Mat K[2], D[2];
+  double opencv_rms[2] = {0, 0};
+  for (int camera = 0; camera < 2; ++camera) {
+    std::vector<cv::Mat> rvecs, tvecs;
+    opencv_rms[camera] = cv::calibrateCamera(object_points, corners[camera], image_size[camera],
+                                             K[camera], D[camera], rvecs, tvecs);
+    CameraCalibrationReport camera_report;
+    camera_report.camera = names[camera];
+    std::vector<Eigen::Vector2d> residuals;
+    for (size_t view = 0; view < object_points.size(); ++view) {
+      std::vector<cv::Point2f> projected;
+      cv::projectPoints(object_points[view], rvecs[view], tvecs[view], K[camera], D[camera],
+                        projected);
+      for (size_t i = 0; i < projected.size(); ++i) {
+        CalibrationObservation observation;
+        observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
+        observation.measured_px = Eigen::Vector2d(corners[camera][view][i].x,
+                                                  corners[camera][view][i].y);
+        observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
+        observation.view = static_cast<int>(view);
+        observation.label = "r" + std::to_string(static_cast<int>(i) / options.cols) + "c" +
+                            std::to_string(static_cast<int>(i) % options.cols);
+        residuals.push_back(observation.reprojected_px - observation.measured_px);
+        camera_report.observations.push_back(observation);
+      }
+    }
+    camera_report.final = SummariseResiduals(residuals);
+    camera_report.linear = camera_report.final;
+    std::vector<CalibrationObservation> first_view;
+    for (const auto& o : camera_report.observations) {
+      if (o.view == 0) first_view.push_back(o);
+    }
+    camera_report.overlay = DrawCalibrationOverlay(first_image[camera], first_view);
+    result.report.cameras.push_back(std::move(camera_report));
+  }
+  cv::Mat R, T, E, F;
+  const double stereo_rms = cv::stereoCalibrate(
+      object_points, corners[0], corners[1], K[0], D[0], K[1], D[1], image_size[0], R, T, E, F,
+      cv::CALIB_FIX_INTRINSIC,
+      cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
+
+  Intrinsics intrinsics;
+  cv::cv2eigen(K[0], intrinsics.K1);
+  cv::cv2eigen(K[1], intrinsics.K2);
+  intrinsics.D1.assign(D[0].begin<double>(), D[0].end<double>());
+  intrinsics.D2.assign(D[1].begin<double>(), D[1].end<double>());
+  cv::cv2eigen(R, intrinsics.R);
+  cv::cv2eigen(T, intrinsics.T);
+  StereoCalibration& calibration = result.calibration;
+  calibration.P1.leftCols<3>() = intrinsics.K1;
+  calibration.P1.col(3).setZero();
+  calibration.P2.leftCols<3>() = intrinsics.K2 * intrinsics.R;
+  calibration.P2.col(3) = intrinsics.K2 * intrinsics.T;
+  calibration.intrinsics = intrinsics;
+  calibration.image_width = image_size[0].width;
+  calibration.image_height = image_size[0].height;
+  calibration.DeriveFromProjections();
+  result.report.cameras[0].camera_centre = calibration.C1;
+  result.report.cameras[1].camera_centre = calibration.C2;
+
+  // Epipolar consistency on undistorted corners (P and F apply to undistorted pixels).
+  std::vector<Eigen::Vector2d> undistorted[2];
+  for (int camera = 0; camera < 2; ++camera) {
+    for (const auto& view : corners[camera]) {
+      std::vector<cv::Point2f> points;
+      cv::undistortPoints(view, points, K[camera], D[camera], cv::noArray(), K[camera]);
+      for (const cv::Point2f& p : points) undistorted[camera].emplace_back(p.x, p.y);
+    }
+  }
+  result.report.num_epipolar_pairs = static_cast<int>(undistorted[0].size());
+  result.report.mean_epipolar_distance_px =
+      MeanEpipolarDistancePx(calibration.F, undistorted[0], undistorted[1]);
+  result.report.extra = {{"opencv_rms_left_px", opencv_rms[0]},
+                         {"opencv_rms_right_px", opencv_rms[1]},
+                         {"stereo_rms_px", stereo_rms},
+                         {"num_pairs", object_points.size()},
+                         {"skipped_images", skipped},
+                         {"rows", options.rows},
+                         {"cols", options.cols},
+                         {"square_mm", options.square_mm},
+                         {"world_frame", "left camera, mm"}};
+  result.report.notes.push_back("world frame = left camera frame (mm); P and F apply to "
+                                "undistorted pixels (D1, D2 in CAL.yml)");
+  if (!skipped.empty()) {
+    result.report.notes.push_back(std::to_string(skipped.size()) +
+                                  " image(s) without a detected board were skipped");
+  }
+  StoreErrorFigures(&result);
+  calibration.error_figures.emplace_back("stereo_rms_px", stereo_rms);
+  result.report.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace hnnstereo::calib

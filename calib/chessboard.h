@@ -1,0 +1,44 @@
+#pragma once
+// Stereo calibration from chessboard image pairs with OpenCV (Zhang 2000, "A flexible new
+// technique for camera calibration"; OpenCV calib3d): corner detection with sub-pixel
+// refinement, intrinsics with distortion per camera (cv::calibrateCamera), then the pair
+// (cv::stereoCalibrate with the intrinsics fixed). The world frame of the result is the LEFT
+// CAMERA frame in millimetres: P1 = K1 [I | 0], P2 = K2 [R | T]; P and F apply to undistorted
+// pixel coordinates (D1, D2 are written; `match`/`pick` undistort when D is present).
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibration_report.h"
+
+namespace hnnstereo::calib {
+
+/// Options of the chessboard calibration.
+struct ChessboardOptions {
+  int rows = 6;              ///< inner corners per column (OpenCV sample board: 6)
+  int cols = 9;              ///< inner corners per row (OpenCV sample board: 9)
+  double square_mm = 25.0;   ///< side of one square (mm)
+  std::vector<std::string> left_images;   ///< one per pair, same order as right_images
+  std::vector<std::string> right_images;
+  int subpixel_window = 11;  ///< cornerSubPix window size (px), as in OpenCV's stereo_calib
+  /// Pairs in which the board is found in both images; fewer is an error.
+  int min_pairs = 3;
+
+  std::string Check() const;
+};
+
+/// Chessboard corners of one image (row-major over rows x cols inner corners, OpenCV order),
+/// refined to sub-pixel; std::nullopt when the board is not found. `image` grey or BGR.
+std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Mat& image, int rows,
+                                                                    int cols,
+                                                                    int subpixel_window = 11);
+
+/// Runs the calibration. Report extras: opencv_rms_left_px, opencv_rms_right_px (as returned by
+/// cv::calibrateCamera), stereo_rms_px, num_pairs, skipped images.
+/// @throws std::runtime_error naming the image or option at fault.
+CalibrationResult CalibrateChessboard(const ChessboardOptions& options);
+
+}  // namespace hnnstereo::calib

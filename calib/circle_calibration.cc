@@ -1,0 +1,455 @@
+#include "calib/circle_calibration.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/Eigenvalues>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/atomic_file.h"
+#include "calib/circle_target_render.h"
+#include "calib/epipolar.h"
+#include "calib/fundamental.h"
+
+namespace hnnstereo::calib {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Where(const std::string& path) { return "target.yml '" + path + "'"; }
+
+double ReadNumber(const cv::FileNode& node, const std::string& key, const std::string& path) {
+  const cv::FileNode value = node[key];
+  if (value.empty() || (!value.isReal() && !value.isInt())) {
+    throw std::runtime_error(Where(path) + ": '" + key + "' is missing or not a number");
+  }
+  const double number = static_cast<double>(value);
+  if (!std::isfinite(number)) {
+    throw std::runtime_error(Where(path) + ": '" + key + "' is not finite");
+  }
+  return number;
+}
+
+std::string ResolveImage(const cv::FileNode& node, const std::string& key, const fs::path& dir,
+                         const std::string& path, int index) {
+  const cv::FileNode value = node[key];
+  if (value.empty() || !value.isString()) {
+    throw std::runtime_error(Where(path) + ": height " + std::to_string(index) + " has no '" +
+                             key + "' image name");
+  }
+  const fs::path image = fs::path(static_cast<std::string>(value));
+  const fs::path resolved = image.is_absolute() ? image : dir / image;
+  if (!fs::is_regular_file(resolved)) {
+    throw std::runtime_error(Where(path) + ": height " + std::to_string(index) + " " + key +
+                             " image '" + resolved.string() + "' does not exist");
+  }
+  return resolved.string();
+}
+
+// Sum of per-view 12x12 normal matrices for a labeling, smallest eigenvalue and its vector.
+double SmallestEigenvalue(const Eigen::Matrix<double, 12, 12>& M,
+                          Eigen::Matrix<double, 12, 1>* vector = nullptr) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> solver(
+      M, vector ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
+  if (vector) *vector = solver.eigenvectors().col(0);
+  return solver.eigenvalues()(0);
+}
+
+}  // namespace
+
+std::string TargetDescription::Check() const {
+  if (std::string problem = grid.Check(); !problem.empty()) return problem;
+  if (placements.size() < 2) {
+    return "the target must be seen at two or more heights (placements: " +
+           std::to_string(placements.size()) + "); one plane is degenerate for the DLT";
+  }
+  for (size_t i = 0; i < placements.size(); ++i) {
+    if (!placements[i].world_from_target.allFinite()) {
+      return "height " + std::to_string(i) + ": world pose has non-finite values";
+    }
+    const Eigen::Matrix3d R = placements[i].world_from_target.block<3, 3>(0, 0);
+    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0) {
+      return "height " + std::to_string(i) + ": world_from_target is not a rigid motion";
+    }
+  }
+  return {};
+}
+
+std::string CircleCalibrationOptions::Check() const {
+  if (std::string problem = detection.Check(); !problem.empty()) return problem;
+  if (std::string problem = grid.Check(); !problem.empty()) return problem;
+  return dlt.Check();
+}
+
+TargetDescription LoadTargetDirectory(const std::string& target_dir) {
+  const fs::path dir(target_dir);
+  if (!fs::is_directory(dir)) {
+    throw std::runtime_error("target folder '" + target_dir + "' does not exist");
+  }
+  const fs::path yml = dir / "target.yml";
+  const std::string path = yml.string();
+  if (!fs::is_regular_file(yml)) {
+    throw std::runtime_error("target folder '" + target_dir + "' has no target.yml");
+  }
+  TargetDescription target;
+  try {
+    cv::FileStorage storage(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
+    if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");
+    const cv::FileNode root = storage.root();
+    target.grid.rows = static_cast<int>(ReadNumber(root, "rows", path));
+    target.grid.cols = static_cast<int>(ReadNumber(root, "cols", path));
+    target.grid.pitch_mm = ReadNumber(root, "pitch_mm", path);
+    if (!root["circle_radius_mm"].empty()) {
+      target.grid.circle_radius_mm = ReadNumber(root, "circle_radius_mm", path);
+    } else {
+      target.grid.circle_radius_mm = 0.28 * target.grid.pitch_mm;
+    }
+    if (!root["dark_circles"].empty()) {
+      target.dark_circles = ReadNumber(root, "dark_circles", path) != 0.0;
+    }
+    const cv::FileNode heights = root["heights"];
+    if (heights.empty() || !heights.isSeq()) {
+      throw std::runtime_error(Where(path) + ": 'heights' is missing or not a list");
+    }
+    int index = 0;
+    for (cv::FileNodeIterator it = heights.begin(); it != heights.end(); ++it, ++index) {
+      const cv::FileNode height = *it;
+      if (!height.isMap()) {
+        throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                 " is not a map");
+      }
+      TargetPlacement placement;
+      placement.left_image = ResolveImage(height, "left", dir, path, index);
+      placement.right_image = ResolveImage(height, "right", dir, path, index);
+      if (!height["world_from_target"].empty()) {
+        cv::Mat matrix;
+        height["world_from_target"] >> matrix;
+        if (matrix.total() != 16) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " world_from_target must be 4x4");
+        }
+        matrix = matrix.reshape(1, 4);
+        matrix.convertTo(matrix, CV_64F);
+        cv::cv2eigen(matrix, placement.world_from_target);
+      } else {
+        std::vector<double> origin;
+        if (height["origin_mm"].empty()) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " needs 'origin_mm' (and 'yaw_deg') or 'world_from_target'");
+        }
+        height["origin_mm"] >> origin;
+        if (origin.size() != 3) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " origin_mm must have 3 numbers");
+        }
+        const double yaw_deg =
+            height["yaw_deg"].empty() ? 0.0 : ReadNumber(height, "yaw_deg", path);
+        placement.world_from_target =
+            WorldFromTargetFlat(Eigen::Vector3d(origin[0], origin[1], origin[2]), yaw_deg);
+      }
+      if (!placement.world_from_target.allFinite()) {
+        throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                 " pose has a non-finite value");
+      }
+      target.placements.push_back(placement);
+    }
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error(Where(path) + " is not valid OpenCV YAML: " + e.err);
+  }
+  if (const std::string problem = target.Check(); !problem.empty()) {
+    throw std::runtime_error(Where(path) + ": " + problem);
+  }
+  return target;
+}
+
+void SaveTargetDescription(const TargetDescription& target, const std::string& path) {
+  WriteAtomically(path, [&](const std::string& temporary) {
+    cv::FileStorage storage(temporary, cv::FileStorage::WRITE | cv::FileStorage::FORMAT_YAML);
+    if (!storage.isOpened()) throw std::runtime_error("cannot open '" + path + "' for writing");
+    storage << "rows" << target.grid.rows << "cols" << target.grid.cols;
+    storage << "pitch_mm" << target.grid.pitch_mm;
+    storage << "circle_radius_mm" << target.grid.circle_radius_mm;
+    storage << "dark_circles" << static_cast<int>(target.dark_circles);
+    storage << "heights" << "[";
+    for (const TargetPlacement& placement : target.placements) {
+      cv::Mat pose;
+      cv::eigen2cv(placement.world_from_target, pose);
+      storage << "{" << "left" << placement.left_image << "right" << placement.right_image
+              << "world_from_target" << pose << "}";
+    }
+    storage << "]";
+    storage.release();
+  });
+}
+
+GridRotationChoice ChooseGridRotations(
+    const std::vector<std::vector<Eigen::Vector3d>>& points3D_per_view,
+    const std::vector<std::vector<Eigen::Vector2d>>& canonical_centres_per_view,
+    const std::vector<std::vector<int>>& rotations) {
+  using Matrix12d = Eigen::Matrix<double, 12, 12>;
+  const size_t num_views = points3D_per_view.size();
+  const size_t num_rotations = rotations.size();
+  if (num_views == 0 || canonical_centres_per_view.size() != num_views || num_rotations == 0) {
+    throw std::invalid_argument("ChooseGridRotations: inconsistent input sizes");
+  }
+  // One normalisation for all labelings: the point sets do not depend on the labeling.
+  std::vector<Eigen::Vector3d> all_world;
+  std::vector<Eigen::Vector2d> all_image;
+  for (size_t v = 0; v < num_views; ++v) {
+    all_world.insert(all_world.end(), points3D_per_view[v].begin(), points3D_per_view[v].end());
+    all_image.insert(all_image.end(), canonical_centres_per_view[v].begin(),
+                     canonical_centres_per_view[v].end());
+  }
+  const Eigen::Matrix4d T_world = HartleyNormalisation3D(all_world);
+  const Eigen::Matrix3d T_image = HartleyNormalisation2D(all_image);
+  std::vector<std::vector<Matrix12d>> normal(num_views, std::vector<Matrix12d>(num_rotations));
+  for (size_t v = 0; v < num_views; ++v) {
+    const auto& world = points3D_per_view[v];
+    const auto& centres = canonical_centres_per_view[v];
+    std::vector<Eigen::Vector3d> world_normalised;
+    for (const auto& X : world) world_normalised.push_back((T_world * X.homogeneous()).hnormalized());
+    for (size_t r = 0; r < num_rotations; ++r) {
+      std::vector<Eigen::Vector2d> image_normalised;
+      for (size_t i = 0; i < world.size(); ++i) {
+        image_normalised.push_back(
+            (T_image * centres[static_cast<size_t>(rotations[r][i])].homogeneous()).hnormalized());
+      }
+      normal[v][r] = DltNormalMatrix(world_normalised, image_normalised);
+    }
+  }
+
+  // Candidate labelings: exhaustive when small, otherwise per first-view rotation a greedy
+  // pairwise choice for the other views.
+  std::vector<std::vector<int>> combos;
+  const double num_combos = std::pow(static_cast<double>(num_rotations),
+                                     static_cast<double>(num_views));
+  if (num_combos <= 16384.0) {
+    std::vector<int> combo(num_views, 0);
+    while (true) {
+      combos.push_back(combo);
+      size_t k = 0;
+      while (k < num_views && ++combo[k] == static_cast<int>(num_rotations)) combo[k++] = 0;
+      if (k == num_views) break;
+    }
+  } else {
+    for (size_t r0 = 0; r0 < num_rotations; ++r0) {
+      std::vector<int> combo(num_views, 0);
+      combo[0] = static_cast<int>(r0);
+      for (size_t v = 1; v < num_views; ++v) {
+        double best = std::numeric_limits<double>::infinity();
+        for (size_t r = 0; r < num_rotations; ++r) {
+          const double value = SmallestEigenvalue(normal[0][r0] + normal[v][r]);
+          if (value < best) {
+            best = value;
+            combo[v] = static_cast<int>(r);
+          }
+        }
+      }
+      combos.push_back(combo);
+    }
+  }
+  std::vector<double> residuals(combos.size());
+  double best_residual = std::numeric_limits<double>::infinity();
+  double scale = 0.0;
+  for (size_t c = 0; c < combos.size(); ++c) {
+    Matrix12d sum = Matrix12d::Zero();
+    for (size_t v = 0; v < num_views; ++v) sum += normal[v][static_cast<size_t>(combos[c][v])];
+    residuals[c] = SmallestEigenvalue(sum);
+    best_residual = std::min(best_residual, residuals[c]);
+    scale = std::max(scale, sum.trace());
+  }
+  std::vector<size_t> equivalent;
+  for (size_t c = 0; c < combos.size(); ++c) {
+    if (residuals[c] <= 1.25 * best_residual + 1e-12 * scale) equivalent.push_back(c);
+  }
+  GridRotationChoice choice;
+  choice.algebraic_residual = best_residual;
+  choice.num_equivalent = static_cast<int>(equivalent.size());
+  size_t chosen = equivalent.front();
+  if (equivalent.size() > 1) {
+    // Orientation rule: world +X appears closest to image +u (rightward).
+    choice.decided_by_image_rule = true;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& X : all_world) centroid += X;
+    centroid /= static_cast<double>(all_world.size());
+    double best_alignment = -std::numeric_limits<double>::infinity();
+    for (size_t c : equivalent) {
+      Matrix12d sum = Matrix12d::Zero();
+      for (size_t v = 0; v < num_views; ++v) sum += normal[v][static_cast<size_t>(combos[c][v])];
+      Eigen::Matrix<double, 12, 1> p;
+      SmallestEigenvalue(sum, &p);
+      ProjectionMatrix P_normalised;
+      for (int row = 0; row < 3; ++row) {
+        for (int col = 0; col < 4; ++col) P_normalised(row, col) = p(4 * row + col);
+      }
+      const ProjectionMatrix P = T_image.inverse() * P_normalised * T_world;
+      const Eigen::Vector2d direction =
+          Project(P, centroid + Eigen::Vector3d::UnitX()) - Project(P, centroid);
+      const double alignment = direction.x() / std::max(direction.norm(), 1e-300);
+      if (alignment > best_alignment) {
+        best_alignment = alignment;
+        chosen = c;
+      }
+    }
+  }
+  choice.rotation_per_view = combos[chosen];
+  return choice;
+}
+
+CalibrationResult CalibrateFromCorrespondences(
+    const std::string& method, const std::vector<std::vector<Eigen::Vector3d>>& left_world,
+    const std::vector<std::vector<Eigen::Vector2d>>& left_image,
+    const std::vector<std::vector<Eigen::Vector3d>>& right_world,
+    const std::vector<std::vector<Eigen::Vector2d>>& right_image, const DltOptions& options) {
+  CalibrationResult result;
+  result.report.method = method;
+  result.report.num_views = static_cast<int>(std::max(left_world.size(), right_world.size()));
+  const std::vector<std::vector<Eigen::Vector3d>>* worlds[2] = {&left_world, &right_world};
+  const std::vector<std::vector<Eigen::Vector2d>>* images[2] = {&left_image, &right_image};
+  const char* names[2] = {"left", "right"};
+  for (int camera = 0; camera < 2; ++camera) {
+    std::vector<Eigen::Vector3d> world;
+    std::vector<Eigen::Vector2d> image;
+    CameraCalibrationReport camera_report;
+    camera_report.camera = names[camera];
+    for (size_t v = 0; v < worlds[camera]->size(); ++v) {
+      const auto& view_world = (*worlds[camera])[v];
+      const auto& view_image = (*images[camera])[v];
+      for (size_t i = 0; i < view_world.size(); ++i) {
+        world.push_back(view_world[i]);
+        image.push_back(view_image[i]);
+        CalibrationObservation observation;
+        observation.point3D_in_world = view_world[i];
+        observation.measured_px = view_image[i];
+        observation.view = static_cast<int>(v);
+        observation.label = std::string("p").append(std::to_string(i));
+        camera_report.observations.push_back(observation);
+      }
+    }
+    DltReport dlt;
+    try {
+      dlt = EstimateProjectionDlt(world, image, options);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string(names[camera]) + " camera: " + e.what());
+    }
+    (camera == 0 ? result.calibration.P1 : result.calibration.P2) = dlt.P;
+    camera_report.linear = dlt.linear;
+    camera_report.final = dlt.final;
+    camera_report.refined = dlt.refined;
+    camera_report.camera_centre = dlt.camera_centre;
+    for (auto& observation : camera_report.observations) {
+      observation.reprojected_px = Project(dlt.P, observation.point3D_in_world);
+    }
+    result.report.cameras.push_back(std::move(camera_report));
+  }
+  result.calibration.DeriveFromProjections();
+  // Epipolar consistency over points measured in both cameras (same view, same world point).
+  std::vector<Eigen::Vector2d> left_points, right_points;
+  const auto& left_obs = result.report.cameras[0].observations;
+  const auto& right_obs = result.report.cameras[1].observations;
+  for (const auto& l : left_obs) {
+    for (const auto& r : right_obs) {
+      if (l.view == r.view && (l.point3D_in_world - r.point3D_in_world).norm() < 1e-9) {
+        left_points.push_back(l.measured_px);
+        right_points.push_back(r.measured_px);
+        break;
+      }
+    }
+  }
+  result.report.num_epipolar_pairs = static_cast<int>(left_points.size());
+  result.report.mean_epipolar_distance_px =
+      MeanEpipolarDistancePx(result.calibration.F, left_points, right_points);
+  StoreErrorFigures(&result);
+  return result;
+}
+
+CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
+                                        const CircleCalibrationOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
+  const TargetDescription target = LoadTargetDirectory(target_dir);
+  CircleDetectionOptions detection_options = options.detection;
+  detection_options.dark_circles = target.dark_circles;
+  const std::vector<std::vector<int>> rotations =
+      GridRotations(target.grid.rows, target.grid.cols);
+  const size_t num_views = target.placements.size();
+
+  std::vector<std::vector<Eigen::Vector3d>> world(num_views);
+  std::vector<std::vector<Eigen::Vector2d>> centres[2];
+  cv::Mat first_images[2];
+  int image_width = 0, image_height = 0;
+  const char* names[2] = {"left", "right"};
+  for (size_t v = 0; v < num_views; ++v) {
+    const TargetPlacement& placement = target.placements[v];
+    world[v] = target.grid.PointsInWorld(placement.world_from_target);
+    for (int camera = 0; camera < 2; ++camera) {
+      const std::string& path = camera == 0 ? placement.left_image : placement.right_image;
+      const cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      if (image.empty()) throw std::runtime_error("cannot read image '" + path + "'");
+      if (v == 0) {
+        first_images[camera] = image;
+        if (camera == 0) image_width = image.cols, image_height = image.rows;
+      } else if (image.size() != first_images[camera].size()) {
+        throw std::runtime_error("image '" + path + "' differs in size from the " +
+                                 names[camera] + " image of height 0");
+      }
+      const CircleGridDetection detection =
+          DetectCircleGrid(image, target.grid, detection_options, options.grid);
+      if (!detection.found) {
+        throw std::runtime_error("height " + std::to_string(v) + ", " + names[camera] +
+                                 " image '" + path + "': " + detection.message);
+      }
+      centres[camera].push_back(detection.centres_px);
+    }
+  }
+  // Rotation of the symmetric grid per height and camera, from the world poses.
+  std::vector<std::vector<Eigen::Vector2d>> ordered[2];
+  std::vector<std::string> notes;
+  for (int camera = 0; camera < 2; ++camera) {
+    const GridRotationChoice choice = ChooseGridRotations(world, centres[camera], rotations);
+    for (size_t v = 0; v < num_views; ++v) {
+      const std::vector<int>& rotation = rotations[static_cast<size_t>(choice.rotation_per_view[v])];
+      std::vector<Eigen::Vector2d> view_centres(rotation.size());
+      for (size_t i = 0; i < rotation.size(); ++i) {
+        view_centres[i] = centres[camera][v][static_cast<size_t>(rotation[i])];
+      }
+      ordered[camera].push_back(view_centres);
+    }
+    if (choice.decided_by_image_rule) {
+      notes.push_back(std::string(names[camera]) + " camera: the world poses fit " +
+                      std::to_string(choice.num_equivalent) +
+                      " grid orientations equally well; chose the one that shows world +X "
+                      "closest to image +u (rightward)");
+    }
+  }
+  CalibrationResult result =
+      CalibrateFromCorrespondences("circles", world, ordered[0], world, ordered[1], options.dlt);
+  result.calibration.image_width = image_width;
+  result.calibration.image_height = image_height;
+  result.report.notes = notes;
+  const int cols = target.grid.cols;
+  for (int camera = 0; camera < 2; ++camera) {
+    CameraCalibrationReport& camera_report = result.report.cameras[static_cast<size_t>(camera)];
+    for (auto& observation : camera_report.observations) {
+      const int index = std::stoi(observation.label.substr(1));
+      observation.label = std::string("r").append(std::to_string(index / cols)).append("c").append(std::to_string(index % cols));
+    }
+    camera_report.overlay =
+        DrawCalibrationOverlay(first_images[camera], camera_report.observations);
+  }
+  result.report.extra["grid"] = {{"rows", target.grid.rows},
+                                 {"cols", target.grid.cols},
+                                 {"pitch_mm", target.grid.pitch_mm}};
+  result.report.elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace hnnstereo::calib

@@ -1,0 +1,31 @@
+#pragma once
+// CPU engines over the same problem and energy:
+//  - thesis: serial asynchronous random single-neuron updates on dense weights, as the thesis
+//    software ran it (stop after `stable_updates` consecutive |dE| < tolerance, or max_updates);
+//  - cpu: plain C++ of the parallel Hopfield-Tank dynamics (explicit Euler, all neurons in
+//    lockstep), in double: the reference the OpenCL kernels are tested against.
+
+#include <cstddef>
+
+#include "host/hopfield_network.h"
+#include "host/hopfield_options.h"
+#include "host/hopfield_problem.h"
+#include "host/solve_report.h"
+
+namespace hnnstereo::hnn {
+
+SolveReport SolveThesis(const MatchingProblem& problem, const EnergyOptions& energy,
+                        const DynamicsOptions& dynamics,
+                        std::size_t memory_budget_bytes = kDefaultMemoryBudgetBytes);
+
+SolveReport SolveCpu(const MatchingProblem& problem, const EnergyOptions& energy,
+                     const DynamicsOptions& dynamics,
+                     std::size_t memory_budget_bytes = kDefaultMemoryBudgetBytes);
+
+/// The Lyapunov energy of the continuous network under asynchronous updates: E plus Hopfield's
+/// integral term (for discrete activations, E itself). Used by tests of energy descent.
+double LyapunovEnergy(const NetworkLayout& layout, const std::vector<double>& weights,
+                      const std::vector<double>& biases, const std::vector<double>& V,
+                      const EnergyOptions& energy, const DynamicsOptions& dynamics);
+
+}  // namespace hnnstereo::hnn

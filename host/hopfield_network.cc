@@ -1,0 +1,371 @@
+#include "host/hopfield_network.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <stdexcept>
+#include <unordered_map>
+
+#include "host/hopfield_energy.h"
+
+namespace hnnstereo::hnn {
+namespace {
+
+std::string FormatBytes(double bytes) {
+  char text[64];
+  if (bytes >= 1e9) {
+    std::snprintf(text, sizeof(text), "%.2f GB", bytes / 1e9);
+  } else {
+    std::snprintf(text, sizeof(text), "%.1f MB", bytes / 1e6);
+  }
+  return text;
+}
+
+MatchGeometry GeometryOf(const MatchingProblem& problem, int neuron) {
+  const Candidate& c = problem.candidates[static_cast<std::size_t>(neuron)];
+  return {problem.left_points[static_cast<std::size_t>(c.left)].cast<double>(),
+          c.right_point.cast<double>(), static_cast<double>(c.correlation)};
+}
+
+// Left features within `radius` of each left feature (itself included), by grid hashing.
+void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
+                           std::vector<std::int32_t>* offsets,
+                           std::vector<std::int32_t>* neighbours) {
+  const int n = problem.n_left();
+  offsets->assign(static_cast<std::size_t>(n) + 1, 0);
+  neighbours->clear();
+  if (problem.dense) {
+    neighbours->reserve(static_cast<std::size_t>(n) * static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) neighbours->push_back(j);
+      (*offsets)[static_cast<std::size_t>(i) + 1] = static_cast<std::int32_t>(neighbours->size());
+    }
+    return;
+  }
+  const double cell = std::max(radius, 1.0);
+  auto key = [](long cx, long cy) { return (cx << 32) ^ (cy & 0xffffffffL); };
+  std::unordered_map<long, std::vector<int>> grid;
+  grid.reserve(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const auto& p = problem.left_points[static_cast<std::size_t>(i)];
+    grid[key(std::lround(std::floor(p.x() / cell)), std::lround(std::floor(p.y() / cell)))]
+        .push_back(i);
+  }
+  const double radius2 = radius * radius;
+  std::vector<int> found;
+  for (int i = 0; i < n; ++i) {
+    const auto& p = problem.left_points[static_cast<std::size_t>(i)];
+    const long cx = std::lround(std::floor(p.x() / cell));
+    const long cy = std::lround(std::floor(p.y() / cell));
+    found.clear();
+    for (long dy = -1; dy <= 1; ++dy) {
+      for (long dx = -1; dx <= 1; ++dx) {
+        const auto it = grid.find(key(cx + dx, cy + dy));
+        if (it == grid.end()) continue;
+        for (int j : it->second) {
+          if ((problem.left_points[static_cast<std::size_t>(j)] - p).cast<double>().squaredNorm() <=
+              radius2) {
+            found.push_back(j);
+          }
+        }
+      }
+    }
+    std::sort(found.begin(), found.end());
+    neighbours->insert(neighbours->end(), found.begin(), found.end());
+    (*offsets)[static_cast<std::size_t>(i) + 1] = static_cast<std::int32_t>(neighbours->size());
+  }
+}
+
+}  // namespace
+
+std::string MatchingProblem::Check() const {
+  const int n_left_features = n_left();
+  for (std::size_t a = 0; a < candidates.size(); ++a) {
+    const Candidate& c = candidates[a];
+    if (c.left < 0 || c.left >= n_left_features) {
+      return "candidate " + std::to_string(a) + " has left index " + std::to_string(c.left) +
+             " outside [0, " + std::to_string(n_left_features) + ")";
+    }
+    if (c.column < 0 || c.column >= n_columns) {
+      return "candidate " + std::to_string(a) + " has column " + std::to_string(c.column) +
+             " outside [0, " + std::to_string(n_columns) + ")";
+    }
+    if (!std::isfinite(c.epipolar_distance_px) || !std::isfinite(c.correlation) ||
+        !c.right_point.allFinite()) {
+      return "candidate " + std::to_string(a) + " has a non-finite value";
+    }
+    if (a > 0) {
+      const Candidate& p = candidates[a - 1];
+      if (p.left > c.left || (p.left == c.left && p.column >= c.column)) {
+        return "candidates must be sorted by (left, column) without duplicates (at " +
+               std::to_string(a) + ")";
+      }
+    }
+  }
+  for (const auto& p : left_points) {
+    if (!p.allFinite()) return "a left feature has a non-finite coordinate";
+  }
+  return {};
+}
+
+void CheckMemoryBudget(std::size_t bytes, std::size_t memory_budget_bytes, const std::string& what,
+                       const NetworkLayout& layout) {
+  if (bytes <= memory_budget_bytes) return;
+  throw std::runtime_error(
+      what + " needs " + FormatBytes(static_cast<double>(bytes)) + " (" +
+      std::to_string(layout.n_neurons) + " neurons from " + std::to_string(layout.n_rows) +
+      " left features x " + std::to_string(layout.n_columns) + " columns, " +
+      std::to_string(layout.n_connections()) + " connections), over the memory budget of " +
+      FormatBytes(static_cast<double>(memory_budget_bytes)) +
+      "; tighten the gating (--max-disparity, --top-k, --max-features, --support-radius, no "
+      "--dense) or raise --memory-budget-mb");
+}
+
+NetworkLayout BuildLayout(const MatchingProblem& problem, const EnergyOptions& options,
+                          std::size_t memory_budget_bytes) {
+  if (const std::string problem_error = problem.Check(); !problem_error.empty()) {
+    throw std::invalid_argument("inconsistent matching problem: " + problem_error);
+  }
+  if (const std::string option_error = options.Check(); !option_error.empty()) {
+    throw std::invalid_argument(option_error);
+  }
+  NetworkLayout layout;
+  layout.n_neurons = problem.n_neurons();
+  layout.n_rows = problem.n_left();
+  layout.n_columns = problem.n_columns;
+  layout.column_uniqueness = problem.kind == NetworkKind::kFeatureVsFeature;
+  const auto n = static_cast<std::size_t>(layout.n_neurons);
+
+  // Before building anything proportional to connections, estimate them from row sizes.
+  layout.row_offsets.assign(static_cast<std::size_t>(layout.n_rows) + 1, 0);
+  layout.neuron_row.resize(n);
+  layout.neuron_column.resize(n);
+  for (std::size_t a = 0; a < n; ++a) {
+    layout.neuron_row[a] = problem.candidates[a].left;
+    layout.neuron_column[a] = problem.candidates[a].column;
+    ++layout.row_offsets[static_cast<std::size_t>(problem.candidates[a].left) + 1];
+  }
+  for (int i = 0; i < layout.n_rows; ++i) {
+    layout.row_offsets[static_cast<std::size_t>(i) + 1] +=
+        layout.row_offsets[static_cast<std::size_t>(i)];
+  }
+  if (problem.dense) {
+    const std::size_t dense_bytes = n * n * (sizeof(float) + sizeof(double));
+    layout.weight_offsets.assign(2, 0);
+    layout.weight_offsets[1] = static_cast<std::int64_t>(n * n);
+    CheckMemoryBudget(dense_bytes, memory_budget_bytes, "the dense (all-pairs) network", layout);
+  }
+
+  layout.column_offsets.assign(static_cast<std::size_t>(layout.n_columns) + 1, 0);
+  for (std::size_t a = 0; a < n; ++a) {
+    ++layout.column_offsets[static_cast<std::size_t>(layout.neuron_column[a]) + 1];
+  }
+  for (int k = 0; k < layout.n_columns; ++k) {
+    layout.column_offsets[static_cast<std::size_t>(k) + 1] +=
+        layout.column_offsets[static_cast<std::size_t>(k)];
+  }
+  layout.column_neurons.resize(n);
+  std::vector<std::int32_t> fill(layout.column_offsets.begin(), layout.column_offsets.end() - 1);
+  for (std::size_t a = 0; a < n; ++a) {
+    layout.column_neurons[static_cast<std::size_t>(fill[static_cast<std::size_t>(
+        layout.neuron_column[a])]++)] = static_cast<std::int32_t>(a);
+  }
+
+  FindFeatureNeighbours(problem, options.support_radius_px, &layout.feature_neighbour_offsets,
+                        &layout.feature_neighbours);
+  // Connections per row, then per neuron.
+  std::vector<std::int64_t> row_connections(static_cast<std::size_t>(layout.n_rows), 0);
+  for (int i = 0; i < layout.n_rows; ++i) {
+    std::int64_t count = 0;
+    for (int t = layout.feature_neighbour_offsets[static_cast<std::size_t>(i)];
+         t < layout.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]; ++t) {
+      const int j = layout.feature_neighbours[static_cast<std::size_t>(t)];
+      count += layout.row_offsets[static_cast<std::size_t>(j) + 1] -
+               layout.row_offsets[static_cast<std::size_t>(j)];
+    }
+    row_connections[static_cast<std::size_t>(i)] = count;
+  }
+  layout.weight_offsets.assign(n + 1, 0);
+  for (std::size_t a = 0; a < n; ++a) {
+    layout.weight_offsets[a + 1] =
+        layout.weight_offsets[a] +
+        row_connections[static_cast<std::size_t>(layout.neuron_row[a])];
+  }
+  CheckMemoryBudget(EstimateSize(layout).total_bytes, memory_budget_bytes, "the network", layout);
+  return layout;
+}
+
+NetworkSize EstimateSize(const NetworkLayout& layout) {
+  NetworkSize size;
+  size.n_neurons = layout.n_neurons;
+  size.n_connections = layout.n_connections();
+  size.weight_bytes = static_cast<std::size_t>(size.n_connections) * sizeof(float);
+  // Host double reference copy + device float copy + per-neuron state and layout.
+  size.total_bytes = static_cast<std::size_t>(size.n_connections) * (sizeof(float) + sizeof(double)) +
+                     static_cast<std::size_t>(layout.n_neurons) * 64 +
+                     layout.feature_neighbours.size() * sizeof(std::int32_t);
+  size.dense_matrix_bytes = static_cast<std::size_t>(layout.n_neurons) *
+                            static_cast<std::size_t>(layout.n_neurons) * sizeof(float);
+  return size;
+}
+
+std::vector<double> BuildCompatibilityWeights(const MatchingProblem& problem,
+                                              const NetworkLayout& layout,
+                                              const EnergyOptions& options) {
+  std::vector<double> weights(static_cast<std::size_t>(layout.n_connections()), 0.0);
+  std::vector<MatchGeometry> geometry(static_cast<std::size_t>(layout.n_neurons));
+  for (int a = 0; a < layout.n_neurons; ++a) geometry[static_cast<std::size_t>(a)] = GeometryOf(problem, a);
+  for (int a = 0; a < layout.n_neurons; ++a) {
+    const int i = layout.neuron_row[static_cast<std::size_t>(a)];
+    std::int64_t position = layout.weight_offsets[static_cast<std::size_t>(a)];
+    const MatchGeometry& ga = geometry[static_cast<std::size_t>(a)];
+    for (int t = layout.feature_neighbour_offsets[static_cast<std::size_t>(i)];
+         t < layout.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]; ++t) {
+      const int j = layout.feature_neighbours[static_cast<std::size_t>(t)];
+      const double left_distance = (problem.left_points[static_cast<std::size_t>(i)] -
+                                    problem.left_points[static_cast<std::size_t>(j)])
+                                       .cast<double>()
+                                       .norm();
+      for (int b = layout.row_offsets[static_cast<std::size_t>(j)];
+           b < layout.row_offsets[static_cast<std::size_t>(j) + 1]; ++b, ++position) {
+        if (b == a) continue;  // no self-connection (eq. 6.11)
+        weights[static_cast<std::size_t>(position)] =
+            CompatibilityWeight(ga, geometry[static_cast<std::size_t>(b)], left_distance, options);
+      }
+    }
+  }
+  return weights;
+}
+
+std::vector<double> BuildBiases(const MatchingProblem& problem, const NetworkLayout& layout,
+                                const EnergyOptions& options) {
+  std::vector<double> biases(static_cast<std::size_t>(layout.n_neurons));
+  for (std::size_t a = 0; a < biases.size(); ++a) {
+    biases[a] = Bias(problem.candidates[a].epipolar_distance_px, layout.column_uniqueness, options);
+  }
+  return biases;
+}
+
+std::vector<double> InitialActivations(const MatchingProblem& problem,
+                                       const DynamicsOptions& options) {
+  std::mt19937_64 rng(options.seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> gaussian(0.0, options.initial_noise);
+  std::vector<double> V(static_cast<std::size_t>(problem.n_neurons()));
+  for (std::size_t a = 0; a < V.size(); ++a) {
+    switch (options.initial_state) {
+      case InitialState::kAllOff: V[a] = 0.0; break;
+      case InitialState::kAllOn: V[a] = 1.0; break;
+      case InitialState::kRandomBinary: V[a] = uniform(rng) < 0.5 ? 0.0 : 1.0; break;
+      case InitialState::kRandomContinuous: V[a] = uniform(rng); break;
+      case InitialState::kConstant: V[a] = options.initial_value; break;
+      case InitialState::kConstantNoise:
+        V[a] = std::clamp(options.initial_value + gaussian(rng), 0.0, 1.0);
+        break;
+      case InitialState::kCorrelation:
+        V[a] = 0.5 * (static_cast<double>(problem.candidates[a].correlation) + 1.0);
+        break;
+    }
+  }
+  return V;
+}
+
+std::vector<float> BuildDenseWeights(const MatchingProblem& problem, const NetworkLayout& layout,
+                                     const std::vector<double>& compatibility_weights,
+                                     const EnergyOptions& options,
+                                     std::size_t memory_budget_bytes) {
+  (void)problem;
+  const auto n = static_cast<std::size_t>(layout.n_neurons);
+  CheckMemoryBudget(n * n * sizeof(float) + compatibility_weights.size() * sizeof(double),
+                    memory_budget_bytes, "the thesis engine's dense weight matrix", layout);
+  std::vector<float> W(n * n, 0.0f);
+  for (std::size_t a = 0; a < n; ++a) {
+    const int i = layout.neuron_row[a];
+    std::int64_t position = layout.weight_offsets[a];
+    for (int t = layout.feature_neighbour_offsets[static_cast<std::size_t>(i)];
+         t < layout.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]; ++t) {
+      const int j = layout.feature_neighbours[static_cast<std::size_t>(t)];
+      for (int b = layout.row_offsets[static_cast<std::size_t>(j)];
+           b < layout.row_offsets[static_cast<std::size_t>(j) + 1]; ++b, ++position) {
+        W[a * n + static_cast<std::size_t>(b)] =
+            static_cast<float>(compatibility_weights[static_cast<std::size_t>(position)]);
+      }
+    }
+    // Uniqueness terms of eq. 6.11: -2B within the row, -2C within the column.
+    for (int b = layout.row_offsets[static_cast<std::size_t>(i)];
+         b < layout.row_offsets[static_cast<std::size_t>(i) + 1]; ++b) {
+      W[a * n + static_cast<std::size_t>(b)] -= static_cast<float>(2.0 * options.B);
+    }
+    if (layout.column_uniqueness) {
+      const int k = layout.neuron_column[a];
+      for (int t = layout.column_offsets[static_cast<std::size_t>(k)];
+           t < layout.column_offsets[static_cast<std::size_t>(k) + 1]; ++t) {
+        W[a * n + static_cast<std::size_t>(layout.column_neurons[static_cast<std::size_t>(t)])] -=
+            static_cast<float>(2.0 * options.C);
+      }
+    }
+    W[a * n + a] = 0.0f;
+  }
+  return W;
+}
+
+void LineSums(const NetworkLayout& layout, const std::vector<double>& V,
+              std::vector<double>* row_sums, std::vector<double>* column_sums) {
+  row_sums->assign(static_cast<std::size_t>(layout.n_rows), 0.0);
+  column_sums->assign(static_cast<std::size_t>(layout.n_columns), 0.0);
+  for (int i = 0; i < layout.n_rows; ++i) {
+    double sum = 0.0;
+    for (int a = layout.row_offsets[static_cast<std::size_t>(i)];
+         a < layout.row_offsets[static_cast<std::size_t>(i) + 1]; ++a) {
+      sum += V[static_cast<std::size_t>(a)];
+    }
+    (*row_sums)[static_cast<std::size_t>(i)] = sum;
+  }
+  for (int k = 0; k < layout.n_columns; ++k) {
+    double sum = 0.0;
+    for (int t = layout.column_offsets[static_cast<std::size_t>(k)];
+         t < layout.column_offsets[static_cast<std::size_t>(k) + 1]; ++t) {
+      sum += V[static_cast<std::size_t>(layout.column_neurons[static_cast<std::size_t>(t)])];
+    }
+    (*column_sums)[static_cast<std::size_t>(k)] = sum;
+  }
+}
+
+std::vector<double> SynapticInput(const NetworkLayout& layout, const std::vector<double>& weights,
+                                  const std::vector<double>& V, const EnergyOptions& options) {
+  std::vector<double> row_sums, column_sums;
+  LineSums(layout, V, &row_sums, &column_sums);
+  const double column_weight = layout.column_uniqueness ? 2.0 * options.C : 0.0;
+  std::vector<double> input(static_cast<std::size_t>(layout.n_neurons));
+  for (int a = 0; a < layout.n_neurons; ++a) {
+    const auto ua = static_cast<std::size_t>(a);
+    const int i = layout.neuron_row[ua];
+    std::int64_t position = layout.weight_offsets[ua];
+    double sum = 0.0;
+    for (int t = layout.feature_neighbour_offsets[static_cast<std::size_t>(i)];
+         t < layout.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]; ++t) {
+      const int j = layout.feature_neighbours[static_cast<std::size_t>(t)];
+      for (int b = layout.row_offsets[static_cast<std::size_t>(j)];
+           b < layout.row_offsets[static_cast<std::size_t>(j) + 1]; ++b, ++position) {
+        sum += weights[static_cast<std::size_t>(position)] * V[static_cast<std::size_t>(b)];
+      }
+    }
+    sum -= 2.0 * options.B * (row_sums[static_cast<std::size_t>(i)] - V[ua]);
+    sum -= column_weight *
+           (column_sums[static_cast<std::size_t>(layout.neuron_column[ua])] - V[ua]);
+    input[ua] = sum;
+  }
+  return input;
+}
+
+double Energy(const NetworkLayout& layout, const std::vector<double>& weights,
+              const std::vector<double>& biases, const std::vector<double>& V,
+              const EnergyOptions& options) {
+  const std::vector<double> input = SynapticInput(layout, weights, V, options);
+  double energy = 0.0;
+  for (std::size_t a = 0; a < V.size(); ++a) energy -= V[a] * (0.5 * input[a] + biases[a]);
+  return energy;
+}
+
+}  // namespace hnnstereo::hnn

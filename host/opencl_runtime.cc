@@ -1,0 +1,181 @@
+#include "host/opencl_runtime.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <vector>
+
+#include "kernels/embedded_kernels.h"
+
+namespace hnnstereo::ocl {
+namespace {
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// True when `selector` (an index or a name substring) selects item `index` named `name`.
+bool Selects(const std::string& selector, std::size_t index, const std::string& name) {
+  if (selector.empty()) return true;
+  if (std::all_of(selector.begin(), selector.end(), [](unsigned char c) { return std::isdigit(c); })) {
+    return std::stoul(selector) == index;
+  }
+  return Lower(name).find(Lower(selector)) != std::string::npos;
+}
+
+std::string Trim(std::string text) {
+  while (!text.empty() && (text.back() == '\0' || std::isspace(static_cast<unsigned char>(text.back())))) {
+    text.pop_back();
+  }
+  return text;
+}
+
+}  // namespace
+
+const char* ErrorName(cl_int code) {
+  switch (code) {
+#define HNN_CASE(x) \
+  case x:           \
+    return #x;
+    HNN_CASE(CL_SUCCESS)
+    HNN_CASE(CL_DEVICE_NOT_FOUND)
+    HNN_CASE(CL_DEVICE_NOT_AVAILABLE)
+    HNN_CASE(CL_COMPILER_NOT_AVAILABLE)
+    HNN_CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
+    HNN_CASE(CL_OUT_OF_RESOURCES)
+    HNN_CASE(CL_OUT_OF_HOST_MEMORY)
+    HNN_CASE(CL_BUILD_PROGRAM_FAILURE)
+    HNN_CASE(CL_INVALID_VALUE)
+    HNN_CASE(CL_INVALID_PLATFORM)
+    HNN_CASE(CL_INVALID_DEVICE)
+    HNN_CASE(CL_INVALID_CONTEXT)
+    HNN_CASE(CL_INVALID_COMMAND_QUEUE)
+    HNN_CASE(CL_INVALID_MEM_OBJECT)
+    HNN_CASE(CL_INVALID_BINARY)
+    HNN_CASE(CL_INVALID_BUILD_OPTIONS)
+    HNN_CASE(CL_INVALID_PROGRAM)
+    HNN_CASE(CL_INVALID_PROGRAM_EXECUTABLE)
+    HNN_CASE(CL_INVALID_KERNEL_NAME)
+    HNN_CASE(CL_INVALID_KERNEL)
+    HNN_CASE(CL_INVALID_ARG_INDEX)
+    HNN_CASE(CL_INVALID_ARG_VALUE)
+    HNN_CASE(CL_INVALID_ARG_SIZE)
+    HNN_CASE(CL_INVALID_KERNEL_ARGS)
+    HNN_CASE(CL_INVALID_WORK_DIMENSION)
+    HNN_CASE(CL_INVALID_WORK_GROUP_SIZE)
+    HNN_CASE(CL_INVALID_WORK_ITEM_SIZE)
+    HNN_CASE(CL_INVALID_GLOBAL_OFFSET)
+    HNN_CASE(CL_INVALID_EVENT_WAIT_LIST)
+    HNN_CASE(CL_INVALID_OPERATION)
+    HNN_CASE(CL_INVALID_BUFFER_SIZE)
+    HNN_CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+    HNN_CASE(CL_PLATFORM_NOT_FOUND_KHR)
+#undef HNN_CASE
+    default:
+      return "CL_UNKNOWN_ERROR";
+  }
+}
+
+OpenClError::OpenClError(const std::string& what, cl_int code)
+    : std::runtime_error("OpenCL: " + what + " failed with " + ErrorName(code) + " (" +
+                         std::to_string(code) + ")"),
+      code_(code) {}
+
+ProgramBuildError::ProgramBuildError(const std::string& program, const std::string& options,
+                                     const std::string& log)
+    : OpenClError("building kernels '" + program + "' with options '" + options + "':\n" + log,
+                  CL_BUILD_PROGRAM_FAILURE),
+      log_(log) {}
+
+DeviceSelection DeviceSelection::FromEnvironment() {
+  DeviceSelection selection;
+  if (const char* platform = std::getenv("HNNSTEREO_OPENCL_PLATFORM")) selection.platform = platform;
+  if (const char* device = std::getenv("HNNSTEREO_OPENCL_DEVICE")) selection.device = device;
+  return selection;
+}
+
+Runtime::Runtime(cl::Context context, cl::Device device, std::string description)
+    : context_(std::move(context)),
+      device_(std::move(device)),
+      queue_(context_, device_),
+      description_(std::move(description)) {}
+
+std::unique_ptr<Runtime> Runtime::Create(const DeviceSelection& selection, std::string* why_not) {
+  std::vector<cl::Platform> platforms;
+  try {
+    cl::Platform::get(&platforms);
+  } catch (const cl::Error& e) {
+    if (why_not) *why_not = std::string("no OpenCL platform (") + ErrorName(e.err()) + ")";
+    return nullptr;
+  }
+  if (platforms.empty()) {
+    if (why_not) *why_not = "no OpenCL platform is installed";
+    return nullptr;
+  }
+  struct Found {
+    cl::Platform platform;
+    cl::Device device;
+    bool gpu;
+  };
+  std::vector<Found> found;
+  for (std::size_t p = 0; p < platforms.size(); ++p) {
+    const std::string platform_name = Trim(platforms[p].getInfo<CL_PLATFORM_NAME>());
+    if (!Selects(selection.platform, p, platform_name)) continue;
+    std::vector<cl::Device> devices;
+    try {
+      platforms[p].getDevices(CL_DEVICE_TYPE_ALL, &devices);
+    } catch (const cl::Error&) {
+      continue;
+    }
+    for (std::size_t d = 0; d < devices.size(); ++d) {
+      const std::string device_name = Trim(devices[d].getInfo<CL_DEVICE_NAME>());
+      if (!Selects(selection.device, d, device_name)) continue;
+      found.push_back({platforms[p], devices[d],
+                       (devices[d].getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0});
+    }
+  }
+  if (found.empty()) {
+    if (why_not) {
+      *why_not = "no OpenCL device matches platform '" + selection.platform + "' device '" +
+                 selection.device + "'";
+    }
+    return nullptr;
+  }
+  auto chosen = std::find_if(found.begin(), found.end(), [](const Found& f) { return f.gpu; });
+  if (chosen == found.end() || !selection.device.empty()) chosen = found.begin();
+  try {
+    cl::Context context(chosen->device);
+    const std::string description = Trim(chosen->device.getInfo<CL_DEVICE_NAME>()) + " (" +
+                                    Trim(chosen->platform.getInfo<CL_PLATFORM_NAME>()) + ")";
+    return std::unique_ptr<Runtime>(new Runtime(context, chosen->device, description));
+  } catch (const cl::Error& e) {
+    if (why_not) *why_not = std::string("cannot open the OpenCL device (") + ErrorName(e.err()) + ")";
+    return nullptr;
+  }
+}
+
+const cl::Program& Runtime::Program(const std::string& name, const std::string& options) {
+  const kernels::KernelSource& source = kernels::FindKernelSource(name);
+  const auto key = std::make_tuple(std::string(source.hash), options);
+  if (auto it = programs_.find(key); it != programs_.end()) return it->second;
+  cl::Program program(context_, std::string(source.source));
+  try {
+    program.build(std::vector<cl::Device>{device_}, (options + " -cl-std=CL1.2").c_str());
+  } catch (const cl::BuildError& e) {
+    std::string log;
+    for (const auto& [device, text] : e.getBuildLog()) log += text;
+    throw ProgramBuildError(name, options, log);
+  } catch (const cl::Error& e) {
+    std::string log;
+    try {
+      log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device_);
+    } catch (const cl::Error&) {
+    }
+    throw ProgramBuildError(name, options, log.empty() ? ErrorName(e.err()) : log);
+  }
+  return programs_.emplace(key, std::move(program)).first->second;
+}
+
+}  // namespace hnnstereo::ocl

@@ -1,0 +1,35 @@
+#pragma once
+// What an engine did: iterations, energies, timings and the final activations.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace hnnstereo::hnn {
+
+enum class EngineKind { kThesis, kCpu, kOpenCL };
+
+struct SolveReport {
+  std::string engine;                 ///< "thesis", "cpu" or "opencl"
+  std::string device;                 ///< "host CPU" or the OpenCL device name
+  int n_neurons = 0;
+  std::int64_t n_connections = 0;     ///< stored compatibility weights
+  int iterations = 0;                 ///< Euler steps (parallel) or single-neuron updates (thesis)
+  bool converged = false;             ///< the |dE| rule ended the run (not the limit)
+  std::string termination;            ///< "converged" or "iteration limit"
+  double energy_initial = 0.0;        ///< eq. 6.10 at the initial state
+  double energy_final = 0.0;          ///< eq. 6.10 at the final state
+  std::vector<double> energy_trace;   ///< energy at each check (parallel) / every update (thesis)
+  std::vector<int> energy_trace_iterations;  ///< the iteration of each trace entry
+  std::vector<double> activation;     ///< final V per neuron (match confidence)
+  /// Final potential u per neuron (V = g(u)); the thesis engine's last net input. Ranks
+  /// neurons where activations saturate.
+  std::vector<double> potential;
+  /// Thesis engine only: E plus the continuous network's integral term after every update
+  /// (the Lyapunov function of asynchronous updates; equals E for discrete neurons).
+  std::vector<double> lyapunov_trace;
+  double weights_ms = 0.0;            ///< weight construction
+  double solve_ms = 0.0;              ///< the dynamics to convergence
+};
+
+}  // namespace hnnstereo::hnn

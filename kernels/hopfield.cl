@@ -1,0 +1,226 @@
+// Continuous Hopfield network for stereo matching (thesis ch. 6), OpenCL C 1.2.
+// The kernels imitate the parallel analog chip the thesis proposed: every neuron evolves at once
+// (explicit Euler steps of the Hopfield-Tank equation du/dt = -u/tau + sum_b W_ab V_b + I_a).
+// CPU reference: host/hopfield_energy.cc, host/hopfield_network.cc, host/cpu_engines.cc.
+//
+// Build options (-D): OBJECTIVE (0 thesis eq. 6.6-6.8, 1 printed0, 2 printed1, 3 printed2,
+// 4 geometry x similarity), COMPAT_TYPE (0 sigmoid eq. 6.6, 1 exponential),
+// DISTANCE_ATTENUATION (0/1), DISCRETE (0 continuous, 1 discrete activation).
+//
+// Connection layout (host/hopfield_network.h): neuron a of left feature i is connected to the
+// neurons of every left feature j in feature_neighbours(i); its weights are stored contiguously
+// from weight_offsets[a] in (j, b) order, with a zero in its own slot. Many independent networks
+// are concatenated (block diagonal), so the same kernels solve a batch.
+
+#ifndef OBJECTIVE
+#define OBJECTIVE 0
+#endif
+#ifndef COMPAT_TYPE
+#define COMPAT_TYPE 0
+#endif
+#ifndef DISTANCE_ATTENUATION
+#define DISTANCE_ATTENUATION 0
+#endif
+#ifndef DISCRETE
+#define DISCRETE 0
+#endif
+
+#define MAX_DISPARITY_GRADIENT 1e6f
+#define MIN_COMPAT_DENOMINATOR 1e-3f
+
+typedef struct {
+  float A, B, C, D;
+  float W1, W2, T, lambda;
+  float theta, weight_offset, attenuation_centre, attenuation_slope;
+} EnergyParams;
+
+// ch. 5.3.5: |d_a - d_b| / |c_a - c_b|, d = right - left (2D), c = (left + right) / 2.
+float disparity_gradient(float2 la, float2 ra, float2 lb, float2 rb) {
+  const float2 dd = (ra - la) - (rb - lb);
+  const float change = sqrt(dd.x * dd.x + dd.y * dd.y);
+  const float2 cs = 0.5f * (la + ra) - 0.5f * (lb + rb);
+  const float separation = sqrt(cs.x * cs.x + cs.y * cs.y);
+  if (separation < 1e-9f) return change < 1e-9f ? 0.0f : MAX_DISPARITY_GRADIENT;
+  return fmin(change / separation, MAX_DISPARITY_GRADIENT);
+}
+
+// f(X): eq. 6.6 (sigmoid) or the printed type 1 (exponential); X = +inf gives -1.
+float compatibility_function(float X, const EnergyParams p) {
+  if (isinf(X)) return X > 0.0f ? -1.0f : 1.0f;
+#if COMPAT_TYPE == 1
+  return 2.0f * exp(-X / p.T) - 1.0f;
+#else
+  const float z = p.lambda * (X - p.theta);
+  if (z > 80.0f) return -1.0f;
+  return 2.0f / (1.0f + exp(z)) - 1.0f;
+#endif
+}
+
+float compatibility(float2 la, float2 ra, float ma, float2 lb, float2 rb, float mb,
+                    const EnergyParams p) {
+#if OBJECTIVE == 0
+  const float g = 2.0f * exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;  // eq. 6.8
+  const float s = p.W1 * g + p.W2 * (ma + mb);                                   // eq. 6.7
+  return compatibility_function(s < MIN_COMPAT_DENOMINATOR ? INFINITY : 1.0f / s, p);
+#elif OBJECTIVE == 1
+  const float disparity_change = fabs(length(ra - la) - length(rb - lb));
+  const float separation_change = fabs(length(la - lb) - length(ra - rb));
+  return compatibility_function(0.4f * disparity_change + 0.6f * separation_change, p);
+#elif OBJECTIVE == 2
+  return disparity_gradient(la, ra, lb, rb);
+#elif OBJECTIVE == 3
+  return (ma + mb + 2.0f) / 4.0f;
+#else
+  const float g = 2.0f * exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;
+  return g * (ma + 1.0f) * (mb + 1.0f) / 4.0f;
+#endif
+}
+
+// Weight construction, one work-item per neuron: 2 A C_ab (+ offset) (eq. 6.11 without the
+// uniqueness terms, which come from row and column sums), optional distance attenuation.
+__kernel void build_weights(const int n_neurons,
+                            __global const float2* left_point,       // per neuron
+                            __global const float2* right_point,      // per neuron
+                            __global const float* correlation,       // per neuron
+                            __global const int* neuron_row,
+                            __global const float2* feature_point,    // per left feature
+                            __global const int* row_offsets,
+                            __global const int* feature_neighbour_offsets,
+                            __global const int* feature_neighbours,
+                            __global const long* weight_offsets,
+                            const EnergyParams p,
+                            __global float* weights) {
+  const int a = get_global_id(0);
+  if (a >= n_neurons) return;
+  const int i = neuron_row[a];
+  const float2 la = left_point[a];
+  const float2 ra = right_point[a];
+  const float ma = correlation[a];
+  long position = weight_offsets[a];
+  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+    const int j = feature_neighbours[t];
+    const int first = row_offsets[j];
+    const int last = row_offsets[j + 1];
+#if DISTANCE_ATTENUATION
+    const float2 dl = feature_point[i] - feature_point[j];
+    const float attenuation =
+        1.0f / (1.0f + exp(p.attenuation_slope * (length(dl) - p.attenuation_centre)));
+#endif
+    for (int b = first; b < last; ++b, ++position) {
+      float w = 0.0f;
+      if (b != a) {
+        w = 2.0f * p.A * compatibility(la, ra, ma, left_point[b], right_point[b], correlation[b], p) +
+            p.weight_offset;
+#if DISTANCE_ATTENUATION
+        w *= attenuation;
+#endif
+      }
+      weights[position] = w;
+    }
+  }
+}
+
+// Row sums (one work-item per left feature) and column sums (one per column) of V.
+__kernel void line_sums(const int n_rows, const int n_columns,
+                        __global const int* row_offsets,
+                        __global const int* column_offsets,
+                        __global const int* column_neurons,
+                        __global const float* V,
+                        __global float* row_sums,
+                        __global float* column_sums) {
+  const int g = get_global_id(0);
+  if (g < n_rows) {
+    float sum = 0.0f;
+    for (int a = row_offsets[g]; a < row_offsets[g + 1]; ++a) sum += V[a];
+    row_sums[g] = sum;
+  } else if (g < n_rows + n_columns) {
+    const int k = g - n_rows;
+    float sum = 0.0f;
+    for (int t = column_offsets[k]; t < column_offsets[k + 1]; ++t) sum += V[column_neurons[t]];
+    column_sums[k] = sum;
+  }
+}
+
+float activate(float u, float alpha, float previous) {
+#if DISCRETE
+  return u > 0.0f ? 1.0f : (u < 0.0f ? 0.0f : previous);
+#else
+  return 0.5f * (1.0f + tanh(u / alpha));
+#endif
+}
+
+// The net input of every neuron at state V: field_a = sum_b W_ab V_b + I_a, and the energy term
+// e_a = -V_a (1/2 sum_b W_ab V_b + I_a), so that E = sum_a e_a (eq. 6.10).
+__kernel void neuron_field(const int n_neurons,
+                           __global const int* neuron_row,
+                           __global const int* neuron_column,
+                           __global const int* row_offsets,
+                           __global const int* feature_neighbour_offsets,
+                           __global const int* feature_neighbours,
+                           __global const long* weight_offsets,
+                           __global const float* weights,
+                           __global const float* bias,
+                           __global const float* row_sums,
+                           __global const float* column_sums,
+                           const float two_B, const float two_C,
+                           __global const float* V,
+                           __global float* field,
+                           __global float* energy_terms) {
+  const int a = get_global_id(0);
+  if (a >= n_neurons) return;
+  const int i = neuron_row[a];
+  const float va = V[a];
+  long position = weight_offsets[a];
+  float sum = 0.0f;
+  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+    const int j = feature_neighbours[t];
+    for (int b = row_offsets[j]; b < row_offsets[j + 1]; ++b, ++position) {
+      sum += weights[position] * V[b];
+    }
+  }
+  // Uniqueness (eq. 6.11): -2B over the rest of the row, -2C over the rest of the column.
+  sum -= two_B * (row_sums[i] - va);
+  sum -= two_C * (column_sums[neuron_column[a]] - va);
+  const float ia = bias[a];
+  field[a] = sum + ia;
+  energy_terms[a] = -va * (0.5f * sum + ia);
+}
+
+// One lockstep explicit Euler step of the Hopfield-Tank equation for every neuron of an active
+// network: u += dt (-u / tau + field), V = g(u). Frozen (converged) networks keep their state.
+__kernel void neuron_euler(const int n_neurons,
+                           __global const int* network_of_neuron,
+                           __global const int* active,
+                           const float dt, const float inv_tau, const float alpha,
+                           __global const float* field,
+                           __global float* u,
+                           __global float* V) {
+  const int a = get_global_id(0);
+  if (a >= n_neurons) return;
+  if (!active[network_of_neuron[a]]) return;
+  const float ua = u[a] + dt * (-u[a] * inv_tau + field[a]);
+  u[a] = ua;
+  V[a] = activate(ua, alpha, V[a]);
+}
+
+// Per-network sums of the energy terms: one work-group per network, a uniform tree reduction
+// in local memory (local size must be a power of two, at most 256).
+__kernel void segment_sum(__global const int* segment_offsets,
+                          __global const float* values,
+                          __global float* sums,
+                          __local float* scratch) {
+  const int segment = get_group_id(0);
+  const int lid = get_local_id(0);
+  const int size = get_local_size(0);
+  float sum = 0.0f;
+  for (int a = segment_offsets[segment] + lid; a < segment_offsets[segment + 1]; a += size) {
+    sum += values[a];
+  }
+  scratch[lid] = sum;
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int stride = size / 2; stride > 0; stride /= 2) {
+    if (lid < stride) scratch[lid] += scratch[lid + stride];
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lid == 0) sums[segment] = scratch[0];
+}

@@ -1,0 +1,165 @@
+// Every kernel against its CPU reference, and the opencl engine against the cpu engine.
+// Run under POCL_WORK_GROUP_METHOD=loopvec and =cbs (tests/host/CMakeLists.txt).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+
+#include "host/cpu_engines.h"
+#include "host/decode.h"
+#include "host/hopfield_energy.h"
+#include "host/opencl_engine.h"
+#include "synthetic_problems.h"
+
+namespace hnnstereo::hnn {
+namespace {
+
+class OpenClEngineTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    std::string why_not;
+    runtime_ = ocl::Runtime::Create(ocl::DeviceSelection::FromEnvironment(), &why_not).release();
+    if (!runtime_) why_not_ = why_not;
+    const char* method = std::getenv("POCL_WORK_GROUP_METHOD");
+    std::printf("OpenCL device: %s; POCL_WORK_GROUP_METHOD=%s\n",
+                runtime_ ? runtime_->description().c_str() : why_not.c_str(), method ? method : "(default)");
+  }
+  static void TearDownTestSuite() {
+    delete runtime_;
+    runtime_ = nullptr;
+  }
+  void SetUp() override {
+    if (!runtime_) GTEST_SKIP() << "no OpenCL device: " << why_not_;
+  }
+  static ocl::Runtime* runtime_;
+  static std::string why_not_;
+};
+ocl::Runtime* OpenClEngineTest::runtime_ = nullptr;
+std::string OpenClEngineTest::why_not_;
+
+// Relative comparisons use the larger of the initial and final energies as the scale, so that a
+// network settling near E = 0 is still compared meaningfully.
+double EnergyScale(const SolveReport& report) {
+  return std::max(std::abs(report.energy_final), std::abs(report.energy_initial));
+}
+
+std::vector<int> MatchedNeurons(const MatchingProblem& problem, const SolveReport& report) {
+  std::vector<int> neurons;
+  for (const DecodedMatch& m : Decode(problem, report.activation, DecodeOptions{}, &report.potential)) {
+    neurons.push_back(m.neuron);
+  }
+  return neurons;
+}
+
+TEST_F(OpenClEngineTest, BuildWeightsKernelMatchesTheCpuReference) {
+  for (Objective objective : {Objective::kThesis, Objective::kPrinted0, Objective::kPrinted2,
+                              Objective::kGeometrySimilarity}) {
+    for (bool dense : {false, true}) {
+      const MatchingProblem problem = testing::SyntheticProblem(31, 60, 20, dense);
+      EnergyOptions energy;
+      energy.objective = objective;
+      energy.support_radius_px = 15.0;
+      energy.distance_attenuation = dense;
+      const NetworkLayout layout = BuildLayout(problem, energy);
+      const std::vector<double> expected = BuildCompatibilityWeights(problem, layout, energy);
+      OpenClEngine engine(*runtime_);
+      const std::vector<float> actual = engine.BuildWeights(problem, energy);
+      ASSERT_EQ(actual.size(), expected.size());
+      double worst = 0.0;
+      for (std::size_t t = 0; t < expected.size(); ++t) {
+        worst = std::max(worst, std::abs(actual[t] - expected[t]));
+      }
+      EXPECT_LT(worst, 2e-4) << ObjectiveName(objective) << (dense ? " dense" : " sparse");
+    }
+  }
+}
+
+TEST_F(OpenClEngineTest, FieldAndEnergyKernelsMatchTheCpuReference) {
+  const MatchingProblem problem = testing::SyntheticProblem(41, 300, 80);
+  EnergyOptions energy;
+  energy.support_radius_px = 12.0;
+  DynamicsOptions dynamics;
+  dynamics.initial_state = InitialState::kRandomContinuous;
+  const std::vector<double> V = InitialActivations(problem, dynamics);
+  const NetworkLayout layout = BuildLayout(problem, energy);
+  const auto weights = BuildCompatibilityWeights(problem, layout, energy);
+  const auto biases = BuildBiases(problem, layout, energy);
+  const auto input = SynapticInput(layout, weights, V, energy);
+  const double expected_energy = Energy(layout, weights, biases, V, energy);
+  OpenClEngine engine(*runtime_);
+  double actual_energy = 0.0;
+  const std::vector<float> field = engine.Field(problem, energy, V, &actual_energy);
+  ASSERT_EQ(field.size(), input.size());
+  for (std::size_t a = 0; a < field.size(); ++a) {
+    ASSERT_NEAR(field[a], input[a] + biases[a], 1e-4 * (1.0 + std::abs(input[a]))) << "neuron " << a;
+  }
+  EXPECT_NEAR(actual_energy, expected_energy, 1e-5 * std::abs(expected_energy));
+}
+
+TEST_F(OpenClEngineTest, SolveAgreesWithTheCpuEngineOnSeededProblems) {
+  for (std::uint64_t seed : {101u, 102u, 103u, 104u}) {
+    for (Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
+      const MatchingProblem problem = testing::SyntheticProblem(seed, 150, 50);
+      EnergyOptions energy;
+      energy.support_radius_px = 15.0;
+      DynamicsOptions dynamics;
+      dynamics.activation = activation;
+      dynamics.seed = seed;
+      const SolveReport cpu = SolveCpu(problem, energy, dynamics);
+      OpenClEngine engine(*runtime_);
+      const SolveReport opencl = engine.Solve(problem, energy, dynamics);
+      const char* kind = activation == Activation::kContinuous ? "continuous" : "discrete";
+      EXPECT_EQ(MatchedNeurons(problem, opencl), MatchedNeurons(problem, cpu))
+          << "seed " << seed << " " << kind;
+      EXPECT_NEAR(opencl.energy_final, cpu.energy_final, 1e-4 * EnergyScale(cpu))
+          << "seed " << seed << " " << kind;
+      EXPECT_NEAR(opencl.energy_initial, cpu.energy_initial, 1e-4 * std::abs(cpu.energy_initial));
+      EXPECT_EQ(opencl.converged, cpu.converged);
+    }
+  }
+}
+
+TEST_F(OpenClEngineTest, DenseThesisNetworkAgreesWithTheCpuEngine) {
+  const MatchingProblem problem = testing::SyntheticProblem(55, 30, 10, /*dense=*/true);
+  EnergyOptions energy;
+  const SolveReport cpu = SolveCpu(problem, energy, DynamicsOptions{});
+  OpenClEngine engine(*runtime_);
+  const SolveReport opencl = engine.Solve(problem, energy, DynamicsOptions{});
+  EXPECT_EQ(MatchedNeurons(problem, opencl), MatchedNeurons(problem, cpu));
+  EXPECT_NEAR(opencl.energy_final, cpu.energy_final, 1e-4 * EnergyScale(cpu));
+}
+
+TEST_F(OpenClEngineTest, BatchEqualsIndependentSolves) {
+  ProblemBatch batch;
+  for (std::uint64_t seed : {201u, 202u, 203u}) batch.push_back(testing::SyntheticProblem(seed, 80 + 20 * static_cast<int>(seed % 3), 30));
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  OpenClEngine engine(*runtime_);
+  const std::vector<SolveReport> together = engine.SolveBatch(batch, energy, DynamicsOptions{});
+  ASSERT_EQ(together.size(), batch.size());
+  for (std::size_t p = 0; p < batch.size(); ++p) {
+    const SolveReport alone = engine.Solve(batch[p], energy, DynamicsOptions{});
+    EXPECT_EQ(together[p].iterations, alone.iterations) << "network " << p;
+    EXPECT_NEAR(together[p].energy_final, alone.energy_final, 1e-4 * std::abs(alone.energy_final));
+    EXPECT_EQ(MatchedNeurons(batch[p], together[p]),
+              MatchedNeurons(batch[p], alone));
+  }
+}
+
+TEST_F(OpenClEngineTest, Figure61ToyReachesTheGlobalAssignment) {
+  const MatchingProblem problem = testing::Figure61Problem();
+  EnergyOptions energy;
+  energy.A = 0.0;
+  energy.D = 0.25;
+  DynamicsOptions dynamics;
+  dynamics.initial_state = InitialState::kConstant;
+  OpenClEngine engine(*runtime_);
+  const SolveReport report = engine.Solve(problem, energy, dynamics);
+  const auto matches = Decode(problem, report.activation, DecodeOptions{});
+  ASSERT_EQ(matches.size(), 3u);
+  for (const DecodedMatch& m : matches) EXPECT_EQ(m.left, m.column);
+}
+
+}  // namespace
+}  // namespace hnnstereo::hnn

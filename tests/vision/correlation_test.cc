@@ -1,0 +1,208 @@
+#include "vision/correlation.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace hnnstereo::vision {
+namespace {
+
+constexpr unsigned kSeed = 20240611;
+
+cv::Mat RandomImage(int rows, int cols, std::mt19937* random, int low = 0, int high = 255) {
+  std::uniform_int_distribution<int> grey_level(low, high);
+  cv::Mat image(rows, cols, CV_8UC1);
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < cols; ++x)
+      image.at<unsigned char>(y, x) = static_cast<uchar>(grey_level(*random));
+  }
+  return image;
+}
+
+/// Straightforward ZNCC in double: means, then the zero-mean products and norms.
+double ReferenceZncc(const cv::Mat& left, const cv::Mat& right, const Eigen::Vector2f& left_point,
+                     const Eigen::Vector2f& right_point, int window) {
+  const int radius = window / 2;
+  const int lx = static_cast<int>(std::floor(left_point.x() + 0.5f));
+  const int ly = static_cast<int>(std::floor(left_point.y() + 0.5f));
+  const int rx = static_cast<int>(std::floor(right_point.x() + 0.5f));
+  const int ry = static_cast<int>(std::floor(right_point.y() + 0.5f));
+  if (lx < radius || ly < radius || lx >= left.cols - radius || ly >= left.rows - radius ||
+      rx < radius || ry < radius || rx >= right.cols - radius || ry >= right.rows - radius) {
+    return 0.0;
+  }
+  double left_mean = 0.0, right_mean = 0.0;
+  for (int dy = -radius; dy <= radius; ++dy) {
+    for (int dx = -radius; dx <= radius; ++dx) {
+      left_mean += left.at<unsigned char>(ly + dy, lx + dx);
+      right_mean += right.at<unsigned char>(ry + dy, rx + dx);
+    }
+  }
+  left_mean /= window * window;
+  right_mean /= window * window;
+  double product = 0.0, left_square = 0.0, right_square = 0.0;
+  for (int dy = -radius; dy <= radius; ++dy) {
+    for (int dx = -radius; dx <= radius; ++dx) {
+      const double l = left.at<unsigned char>(ly + dy, lx + dx) - left_mean;
+      const double r = right.at<unsigned char>(ry + dy, rx + dx) - right_mean;
+      product += l * r;
+      left_square += l * l;
+      right_square += r * r;
+    }
+  }
+  if (left_square == 0.0 || right_square == 0.0) return 0.0;
+  return product / std::sqrt(left_square * right_square);
+}
+
+TEST(ZnccMatcher, OneForIdenticalWindows) {
+  std::mt19937 random(kSeed);
+  const cv::Mat image = RandomImage(40, 50, &random);
+  for (const int window : {3, 5, 7, 15}) {
+    const ZnccMatcher zncc(image, image, window);
+    EXPECT_EQ(zncc.window(), window);
+    EXPECT_NEAR(zncc({20.0f, 20.0f}, {20.0f, 20.0f}), 1.0f, 1e-6f) << "window " << window;
+  }
+  // The same content at different positions of two different images.
+  cv::Mat shifted = cv::Mat::zeros(40, 50, CV_8UC1);
+  image(cv::Rect(0, 0, 43, 40)).copyTo(shifted(cv::Rect(7, 0, 43, 40)));
+  const ZnccMatcher zncc(image, shifted, 5);
+  EXPECT_NEAR(zncc({12.0f, 15.0f}, {19.0f, 15.0f}), 1.0f, 1e-6f);
+}
+
+TEST(ZnccMatcher, MinusOneForInvertedWindows) {
+  std::mt19937 random(kSeed);
+  const cv::Mat image = RandomImage(30, 30, &random);
+  const cv::Mat inverted = 255 - image;
+  const ZnccMatcher zncc(image, inverted, 7);
+  EXPECT_NEAR(zncc({15.0f, 15.0f}, {15.0f, 15.0f}), -1.0f, 1e-6f);
+}
+
+TEST(ZnccMatcher, InvariantToGainAndOffset) {
+  std::mt19937 random(kSeed);
+  const cv::Mat image = RandomImage(30, 30, &random, 0, 100);
+  cv::Mat brighter;
+  image.convertTo(brighter, CV_8U, 2.0, 17.0);  // exact: 2 * 100 + 17 <= 255
+  const ZnccMatcher zncc(image, brighter, 5);
+  EXPECT_NEAR(zncc({10.0f, 12.0f}, {10.0f, 12.0f}), 1.0f, 1e-6f);
+  const ZnccMatcher same(image, image, 5);
+  EXPECT_NEAR(zncc({10.0f, 12.0f}, {20.0f, 8.0f}), same({10.0f, 12.0f}, {20.0f, 8.0f}), 1e-6f);
+}
+
+TEST(ZnccMatcher, ZeroForFlatWindow) {
+  std::mt19937 random(kSeed);
+  cv::Mat textured = RandomImage(30, 30, &random);
+  cv::Mat flat(30, 30, CV_8UC1, cv::Scalar(200));
+  const ZnccMatcher zncc(textured, flat, 5);
+  EXPECT_EQ(zncc({15.0f, 15.0f}, {15.0f, 15.0f}), 0.0f);
+  const ZnccMatcher both_flat(flat, flat, 5);
+  EXPECT_EQ(both_flat({15.0f, 15.0f}, {15.0f, 15.0f}), 0.0f);
+}
+
+TEST(ZnccMatcher, ZeroWhenWindowLeavesImage) {
+  std::mt19937 random(kSeed);
+  const cv::Mat image = RandomImage(30, 40, &random);
+  const ZnccMatcher zncc(image, image, 5);
+  const Eigen::Vector2f inside(20.0f, 15.0f);
+  EXPECT_NEAR(zncc({2.0f, 2.0f}, {2.0f, 2.0f}), 1.0f, 1e-6f);      // first full window
+  EXPECT_NEAR(zncc({37.0f, 27.0f}, {37.0f, 27.0f}), 1.0f, 1e-6f);  // last full window
+  EXPECT_EQ(zncc({1.0f, 15.0f}, inside), 0.0f);
+  EXPECT_EQ(zncc({38.0f, 15.0f}, inside), 0.0f);
+  EXPECT_EQ(zncc({20.0f, 1.4f}, inside), 0.0f);   // rounds to 1
+  EXPECT_EQ(zncc({20.0f, 27.6f}, inside), 0.0f);  // rounds to 28
+  EXPECT_EQ(zncc(inside, {-5.0f, 15.0f}), 0.0f);
+  EXPECT_EQ(zncc(inside, {1e9f, 15.0f}), 0.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(zncc(inside, {nan, 15.0f}), 0.0f);
+  EXPECT_EQ(zncc({20.0f, nan}, inside), 0.0f);
+}
+
+TEST(ZnccMatcher, MatchesDoubleReferenceOnRandomImages) {
+  std::mt19937 random(kSeed);
+  std::cout << "seed " << kSeed << "\n";
+  // Different sizes on purpose, and some low-contrast content where cancellation would show.
+  const cv::Mat left = RandomImage(60, 80, &random);
+  cv::Mat right = RandomImage(50, 90, &random);
+  right(cv::Rect(0, 0, 45, 50)) = right(cv::Rect(0, 0, 45, 50)) / 40 + 200;  // values 200..206
+  std::uniform_real_distribution<float> left_x(-2.0f, 82.0f), left_y(-2.0f, 62.0f);
+  std::uniform_real_distribution<float> right_x(-2.0f, 92.0f), right_y(-2.0f, 52.0f);
+  for (const int window : {3, 5, 7, 9, 15}) {
+    const ZnccMatcher zncc(left, right, window);
+    for (int trial = 0; trial < 2000; ++trial) {
+      const Eigen::Vector2f left_point(left_x(random), left_y(random));
+      const Eigen::Vector2f right_point(right_x(random), right_y(random));
+      const double expected = ReferenceZncc(left, right, left_point, right_point, window);
+      const float actual = zncc(left_point, right_point);
+      ASSERT_NEAR(actual, expected, 1e-4)
+          << "window " << window << " left " << left_point.transpose() << " right "
+          << right_point.transpose();
+      ASSERT_LE(std::fabs(actual), 1.0f);
+    }
+  }
+}
+
+TEST(ZnccMatcher, RejectsBadWindow) {
+  const cv::Mat image(20, 20, CV_8UC1, cv::Scalar(0));
+  for (const int window : {-1, 0, 1, 2, 4, 6, 16, 17}) {
+    EXPECT_THROW(ZnccMatcher(image, image, window), std::invalid_argument) << window;
+  }
+}
+
+TEST(ZnccMatcher, RejectsWrongImageType) {
+  const cv::Mat grey(20, 20, CV_8UC1, cv::Scalar(0));
+  const cv::Mat colour(20, 20, CV_8UC3, cv::Scalar(0, 0, 0));
+  const cv::Mat floating(20, 20, CV_32FC1, cv::Scalar(0));
+  EXPECT_THROW(ZnccMatcher(colour, grey, 5), std::invalid_argument);
+  EXPECT_THROW(ZnccMatcher(grey, floating, 5), std::invalid_argument);
+  EXPECT_THROW(ZnccMatcher(cv::Mat(), grey, 5), std::invalid_argument);
+}
+
+// Reports the throughput (not asserted: the machine is shared). Teddy if present, else random.
+TEST(ZnccMatcher, ThroughputReport) {
+  const std::string directory =
+      std::string(HNNSTEREO_SHARED_DIR) + "/datasets/middlebury2003_teddy";
+  cv::Mat left = cv::imread(directory + "/im2.png", cv::IMREAD_GRAYSCALE);
+  cv::Mat right = cv::imread(directory + "/im6.png", cv::IMREAD_GRAYSCALE);
+  if (left.empty() || right.empty()) {
+    std::mt19937 random(kSeed);
+    left = RandomImage(375, 450, &random);
+    right = RandomImage(375, 450, &random);
+  }
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<float> x(0.0f, static_cast<float>(left.cols - 1));
+  std::uniform_real_distribution<float> y(0.0f, static_cast<float>(left.rows - 1));
+  std::vector<Eigen::Vector2f> points(4096);
+  for (auto& point : points) point = {x(random), y(random)};
+  for (const int window : {5, 7}) {
+    const auto build_start = std::chrono::steady_clock::now();
+    const ZnccMatcher zncc(left, right, window);
+    const double build_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build_start)
+            .count();
+    constexpr int kCalls = 2'000'000;
+    double checksum = 0.0;
+    const auto start = std::chrono::steady_clock::now();
+    for (int call = 0; call < kCalls; ++call) {
+      checksum += zncc(points[call & 4095], points[(call * 7 + 3) & 4095]);
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::cout << "ZNCC " << window << "x" << window << ": " << kCalls / seconds / 1e6
+              << " M calls/s (" << 1e9 * seconds / kCalls << " ns/call), construction " << build_ms
+              << " ms, checksum " << checksum << "\n";
+    EXPECT_TRUE(std::isfinite(checksum));
+  }
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

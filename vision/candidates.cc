@@ -1,0 +1,157 @@
+#include "vision/candidates.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <unordered_map>
+
+#include "calib/epipolar.h"
+#include "vision/triangulation.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+struct Scored {
+  int column;
+  Eigen::Vector2f right_point;
+  float tau;
+  float correlation;
+};
+
+// Keeps the K best-correlated (ties: smaller tau), then restores column order.
+void KeepTopK(std::vector<Scored>* scored, int top_k) {
+  if (top_k > 0 && static_cast<int>(scored->size()) > top_k) {
+    std::partial_sort(scored->begin(), scored->begin() + top_k, scored->end(),
+                      [](const Scored& a, const Scored& b) {
+                        return a.correlation != b.correlation ? a.correlation > b.correlation
+                                                              : a.tau < b.tau;
+                      });
+    scored->resize(static_cast<std::size_t>(top_k));
+  }
+  std::sort(scored->begin(), scored->end(),
+            [](const Scored& a, const Scored& b) { return a.column < b.column; });
+}
+
+}  // namespace
+
+std::string CandidateOptions::Check() const {
+  if (!(max_epipolar_distance_px >= 0.0)) {
+    return "max_epipolar_distance_px must be >= 0 (got " + std::to_string(max_epipolar_distance_px) + ")";
+  }
+  if (!(min_disparity <= max_disparity) || !std::isfinite(min_disparity) ||
+      !std::isfinite(max_disparity)) {
+    return "need min_disparity <= max_disparity (got " + std::to_string(min_disparity) + ", " +
+           std::to_string(max_disparity) + ")";
+  }
+  if (z_range_mm && !(z_range_mm->first < z_range_mm->second)) {
+    return "z range needs ZMIN < ZMAX";
+  }
+  if (top_k < 0) return "top_k must be >= 0";
+  if (kind == hnn::NetworkKind::kFeatureVsDisparity && !rectified) {
+    return "the feature-vs-disparity network needs a rectified pair";
+  }
+  return {};
+}
+
+CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
+                                const std::vector<Eigen::Vector2f>& right_points,
+                                const ZnccMatcher& zncc,
+                                const calib::StereoCalibration* calibration,
+                                const CandidateOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (!options.rectified && calibration == nullptr) {
+    throw std::invalid_argument("candidate gating needs a calibration (F) or a rectified pair");
+  }
+  CandidateReport report;
+  hnn::MatchingProblem& problem = report.problem;
+  problem.left_points = left_points;
+  problem.kind = options.kind;
+  problem.dense = options.dense;
+  report.right_points = right_points;
+
+  auto tau_of = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) -> float {
+    if (options.rectified) return std::abs(l.y() - r.y());
+    return static_cast<float>(
+        calib::EpipolarDistancePx(calibration->F, l.cast<double>(), r.cast<double>()));
+  };
+  auto height_ok = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) {
+    if (!options.z_range_mm || calibration == nullptr) return true;
+    const auto point = TriangulateLinear(calibration->P1, calibration->P2, l.cast<double>(),
+                                         r.cast<double>());
+    if (!point || !point->in_front) return false;
+    const double z = point->point_in_world.z();
+    return z >= options.z_range_mm->first && z <= options.z_range_mm->second;
+  };
+
+  std::vector<Scored> scored;
+  if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
+    // Columns are disparity levels min..max (thesis code, operation mode 3).
+    const int d_min = static_cast<int>(std::ceil(options.min_disparity));
+    const int d_max = static_cast<int>(std::floor(options.max_disparity));
+    problem.n_columns = std::max(0, d_max - d_min + 1);
+    for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
+      const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
+      scored.clear();
+      for (int d = d_min; d <= d_max; ++d) {
+        const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
+        ++report.pairs_tested;
+        const float m = zncc(l, r);
+        if (m < options.min_correlation) continue;
+        scored.push_back({d - d_min, r, 0.0f, m});
+      }
+      KeepTopK(&scored, options.top_k);
+      for (const Scored& s : scored) problem.candidates.push_back({i, s.column, s.right_point, s.tau, s.correlation});
+    }
+  } else {
+    problem.n_columns = static_cast<int>(right_points.size());
+    // Rectified: bucket right features by row for a direct lookup.
+    std::unordered_map<int, std::vector<int>> rows;
+    if (options.rectified && !options.dense) {
+      for (int k = 0; k < static_cast<int>(right_points.size()); ++k) {
+        rows[static_cast<int>(std::lround(right_points[static_cast<std::size_t>(k)].y()))].push_back(k);
+      }
+    }
+    const int row_reach = static_cast<int>(std::ceil(options.max_epipolar_distance_px));
+    for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
+      const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
+      scored.clear();
+      auto consider = [&](int k) {
+        const Eigen::Vector2f& r = right_points[static_cast<std::size_t>(k)];
+        ++report.pairs_tested;
+        const float tau = tau_of(l, r);
+        if (!options.dense) {
+          if (!(tau <= options.max_epipolar_distance_px)) return;
+          if (options.rectified) {
+            const double d = l.x() - r.x();
+            if (d < options.min_disparity || d > options.max_disparity) return;
+          }
+          if (!height_ok(l, r)) return;
+        }
+        const float m = zncc(l, r);
+        if (!options.dense && m < options.min_correlation) return;
+        scored.push_back({k, r, std::isfinite(tau) ? tau : 1e6f, m});
+      };
+      if (options.rectified && !options.dense) {
+        const int y = static_cast<int>(std::lround(l.y()));
+        for (int row = y - row_reach; row <= y + row_reach; ++row) {
+          const auto it = rows.find(row);
+          if (it == rows.end()) continue;
+          for (int k : it->second) consider(k);
+        }
+      } else {
+        for (int k = 0; k < static_cast<int>(right_points.size()); ++k) consider(k);
+      }
+      if (!options.dense) KeepTopK(&scored, options.top_k);
+      std::sort(scored.begin(), scored.end(),
+                [](const Scored& a, const Scored& b) { return a.column < b.column; });
+      for (const Scored& s : scored) problem.candidates.push_back({i, s.column, s.right_point, s.tau, s.correlation});
+    }
+  }
+  report.time_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,33 @@
+#pragma once
+// Zero-mean normalised cross-correlation (ZNCC) between windows of the two images
+// (thesis eq. 6.9, with the square root the printed equation lost): range [-1, 1].
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+namespace hnnstereo::vision {
+
+/// Precomputes window means and norms of both images so that each ZNCC costs one pass over the
+/// window. Windows are square, side 5 or 7 (thesis), centred on the rounded pixel.
+class ZnccMatcher {
+ public:
+  /// `left`, `right`: CV_8U grey images (any sizes). `window`: odd side, 3..15.
+  ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window);
+
+  /// ZNCC of the windows centred at the (rounded) points, in [-1, 1]. A window that leaves
+  /// either image, or a flat window (zero variance), gives 0 (no evidence either way).
+  float operator()(const Eigen::Vector2f& left_point, const Eigen::Vector2f& right_point) const;
+
+  int window() const { return window_; }
+
+ private:
+  cv::Mat left_, right_;  // CV_32F copies
+  // Per pixel, interleaved so that one call reads one cache line per image: the window sum
+  // (an integer, exact in float) and 1 / sqrt(sum (I - mean)^2), 0 for a flat window or one
+  // that leaves the image. CV_32FC2.
+  cv::Mat left_stats_, right_stats_;
+  int window_;
+  int radius_;
+};
+
+}  // namespace hnnstereo::vision

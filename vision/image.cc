@@ -1,0 +1,119 @@
+#include "vision/image.h"
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace hnnstereo::vision {
+namespace {
+
+std::string SizeText(const cv::Mat& image) {
+  return std::to_string(image.cols) + "x" + std::to_string(image.rows);
+}
+
+int BitDepth(int depth) {
+  switch (depth) {
+    case CV_8U:
+    case CV_8S:
+      return 8;
+    case CV_16U:
+    case CV_16S:
+    case CV_16F:
+      return 16;
+    case CV_32S:
+    case CV_32F:
+      return 32;
+    default:
+      return 64;
+  }
+}
+
+/// One channel at the original depth: colour goes through the usual luma weights (BGR order, as
+/// cv::imread gives it); an alpha channel is ignored.
+cv::Mat ToSingleChannel(const cv::Mat& original) {
+  cv::Mat single;
+  switch (original.channels()) {
+    case 1:
+      single = original;
+      break;
+    case 2:  // grey + alpha
+      cv::extractChannel(original, single, 0);
+      break;
+    case 3:
+      cv::cvtColor(original, single, cv::COLOR_BGR2GRAY);
+      break;
+    default:  // 4: BGRA
+      cv::cvtColor(original, single, cv::COLOR_BGRA2GRAY);
+      break;
+  }
+  return single;
+}
+
+/// CV_8U working copy. 8-bit data is kept as is; any other depth (16-bit PNG/TIFF, float TIFF) is
+/// stretched linearly so that its own min..max range maps to 0..255, which keeps the contrast of
+/// a 12-bit camera image stored in 16 bits. A flat image maps to 0.
+cv::Mat ToGrey8(const cv::Mat& single) {
+  if (single.depth() == CV_8U) return single.clone();  // never aliases `original`
+  cv::Mat as_double;
+  single.convertTo(as_double, CV_64F);
+  double min_value = 0.0;
+  double max_value = 0.0;
+  cv::minMaxLoc(as_double, &min_value, &max_value);
+  cv::Mat grey;
+  const double range = max_value - min_value;
+  const double scale = range > 0.0 ? 255.0 / range : 0.0;
+  as_double.convertTo(grey, CV_8U, scale, -min_value * scale);
+  return grey;
+}
+
+}  // namespace
+
+LoadedImage LoadImage(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) {
+    throw std::runtime_error("image '" + path + "' does not exist");
+  }
+  if (std::filesystem::is_directory(path, error)) {
+    throw std::runtime_error("image '" + path + "' is a directory, not an image file");
+  }
+  if (std::filesystem::is_regular_file(path, error) &&
+      std::filesystem::file_size(path, error) == 0) {
+    throw std::runtime_error("image '" + path + "' is empty (0 bytes)");
+  }
+
+  cv::Mat original;
+  try {
+    original = cv::imread(path, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception&) {
+    original.release();  // a codec that throws on a corrupt file: same answer as unreadable
+  }
+  if (original.empty()) {
+    throw std::runtime_error("image '" + path +
+                             "' cannot be read (not an image or unsupported format)");
+  }
+  if (original.rows == 0 || original.cols == 0) {
+    throw std::runtime_error("image '" + path + "' is empty (" + SizeText(original) + ")");
+  }
+
+  LoadedImage image;
+  image.path = path;
+  image.original = original;
+  image.bit_depth = BitDepth(original.depth());
+  image.channels = original.channels();
+  image.grey = ToGrey8(ToSingleChannel(original));
+  return image;
+}
+
+void CheckSameSize(const LoadedImage& left, const LoadedImage& right) {
+  if (left.grey.size() != right.grey.size()) {
+    throw std::runtime_error("left and right images differ in size: left '" + left.path + "' is " +
+                             SizeText(left.grey) + ", right '" + right.path + "' is " +
+                             SizeText(right.grey));
+  }
+}
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,25 @@
+#pragma once
+// Image loading at the edge of the system (OpenCV), with clear errors.
+
+#include <opencv2/core.hpp>
+#include <string>
+
+namespace hnnstereo::vision {
+
+/// A loaded image: the original pixels and a grey working copy.
+struct LoadedImage {
+  std::string path;
+  cv::Mat original;  ///< as stored (8/16-bit, grey or colour), for overlays
+  cv::Mat grey;      ///< CV_8U single channel (16-bit inputs scaled to 8 bits by their range)
+  int bit_depth = 8;
+  int channels = 1;
+};
+
+/// Loads an image file (PNG, PGM/PPM, JPEG, TIFF...; 8 or 16 bit; grey or colour).
+/// Throws std::runtime_error with a one-line reason: missing file, unreadable or empty image.
+LoadedImage LoadImage(const std::string& path);
+
+/// Throws std::runtime_error unless both images have the same size (names both sizes).
+void CheckSameSize(const LoadedImage& left, const LoadedImage& right);
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,68 @@
+#include "vision/match_io.h"
+
+#include <cstdio>
+
+namespace hnnstereo::vision {
+
+std::string MatchesCsv(const MatchReport& report) {
+  std::string text = "xl,yl,xr,yr,activation\n";
+  char line[160];
+  for (const StereoMatch& m : report.matches) {
+    std::snprintf(line, sizeof(line), "%.3f,%.3f,%.3f,%.3f,%.6f\n", m.left.x(), m.left.y(),
+                  m.right.x(), m.right.y(), m.activation);
+    text += line;
+  }
+  return text;
+}
+
+nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& options) {
+  nlohmann::json json;
+  json["engine"] = report.solve.engine;
+  json["device"] = report.solve.device;
+  if (!report.engine_notice.empty()) json["engine_notice"] = report.engine_notice;
+  json["features"] = FeatureDetectorName(options.features.detector);
+  json["n_left"] = report.n_left;
+  json["n_right"] = report.n_right;
+  json["n_neurons"] = report.n_neurons;
+  json["n_connections"] = report.n_connections;
+  json["n_matches"] = report.matches.size();
+  json["iterations"] = report.solve.iterations;
+  json["converged"] = report.solve.converged;
+  json["termination"] = report.solve.termination;
+  json["energy_initial"] = report.solve.energy_initial;
+  json["energy_final"] = report.solve.energy_final;
+  json["energy_trace"] = {{"iteration", report.solve.energy_trace_iterations.size() > 2000
+                                            ? std::vector<int>{}
+                                            : report.solve.energy_trace_iterations},
+                          {"energy", report.solve.energy_trace.size() > 2000
+                                         ? std::vector<double>{}
+                                         : report.solve.energy_trace}};
+  json["timing_ms"] = {{"features", report.timing_ms.features},
+                       {"candidates", report.timing_ms.candidates},
+                       {"weights", report.timing_ms.weights},
+                       {"solve", report.timing_ms.solve},
+                       {"decode", report.timing_ms.decode},
+                       {"total", report.timing_ms.total}};
+  const auto& e = options.energy;
+  json["energy_options"] = {{"A", e.A}, {"B", e.B}, {"C", e.C}, {"D", e.D}, {"W1", e.W1},
+                            {"W2", e.W2}, {"T", e.T}, {"lambda", e.lambda}, {"theta", e.theta},
+                            {"objective", hnn::ObjectiveName(e.objective)},
+                            {"support_radius_px", e.support_radius_px}};
+  const auto& d = options.dynamics;
+  json["dynamics_options"] = {{"alpha", d.alpha}, {"time_step", d.time_step}, {"tau", d.tau},
+                              {"max_steps", d.max_steps},
+                              {"initial_state", hnn::InitialStateName(d.initial_state)},
+                              {"activation", d.activation == hnn::Activation::kContinuous
+                                                 ? "continuous" : "discrete"}};
+  json["candidate_options"] = {{"rectified", options.candidates.rectified},
+                               {"dense", options.candidates.dense},
+                               {"top_k", options.candidates.top_k},
+                               {"min_disparity", options.candidates.min_disparity},
+                               {"max_disparity", options.candidates.max_disparity},
+                               {"max_epipolar_distance_px",
+                                options.candidates.max_epipolar_distance_px}};
+  json["decode"] = hnn::DecodeMethodName(options.decode.method);
+  return json;
+}
+
+}  // namespace hnnstereo::vision

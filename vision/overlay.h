@@ -1,0 +1,20 @@
+#pragma once
+// Overlay images people look at instead of reading numbers.
+
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "vision/stereo_matcher.h"
+
+namespace hnnstereo::vision {
+
+/// Left and right images side by side: every feature as a dim dot, matched features coloured by
+/// disparity (blue near zero, red at the largest) and joined by a line for every `line_every`-th
+/// match.
+cv::Mat DrawMatchOverlay(const cv::Mat& left, const cv::Mat& right, const MatchReport& report,
+                         int line_every = 25);
+
+/// Writes a PNG atomically; throws std::runtime_error naming the path on failure.
+void WritePngAtomically(const std::string& path, const cv::Mat& image);
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,124 @@
+#include "vision/stereo_matcher.h"
+
+#include <chrono>
+#include <stdexcept>
+
+#include "host/cpu_engines.h"
+#include "host/opencl_engine.h"
+#include "vision/correlation.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MillisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+std::string_view EngineName(hnn::EngineKind engine) {
+  switch (engine) {
+    case hnn::EngineKind::kThesis: return "thesis";
+    case hnn::EngineKind::kCpu: return "cpu";
+    case hnn::EngineKind::kOpenCL: return "opencl";
+  }
+  return "unknown";
+}
+
+std::optional<hnn::EngineKind> ParseEngine(std::string_view name) {
+  if (name == "thesis") return hnn::EngineKind::kThesis;
+  if (name == "cpu") return hnn::EngineKind::kCpu;
+  if (name == "opencl") return hnn::EngineKind::kOpenCL;
+  return std::nullopt;
+}
+
+std::string MatcherOptions::Check() const {
+  if (auto e = features.Check(); !e.empty()) return e;
+  if (auto e = candidates.Check(); !e.empty()) return e;
+  if (auto e = energy.Check(); !e.empty()) return e;
+  if (auto e = dynamics.Check(); !e.empty()) return e;
+  if (zncc_window < 3 || zncc_window > 15 || zncc_window % 2 == 0) {
+    return "zncc_window must be odd, 3..15 (got " + std::to_string(zncc_window) + ")";
+  }
+  if (!(decode.threshold >= 0.0 && decode.threshold <= 1.0)) return "decode threshold must be in [0, 1]";
+  return {};
+}
+
+MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                        const calib::StereoCalibration* calibration, const MatcherOptions& options,
+                        ocl::Runtime* runtime) {
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (left_grey.size() != right_grey.size()) {
+    throw std::invalid_argument("left and right images differ in size");
+  }
+  MatchReport report;
+  const auto total_start = Clock::now();
+
+  auto start = Clock::now();
+  const FeatureReport left = DetectFeatures(left_grey, options.features);
+  const FeatureReport right = DetectFeatures(right_grey, options.features);
+  report.timing_ms.features = MillisecondsSince(start);
+  report.left_features = left.points;
+  report.right_features = right.points;
+  report.n_left = static_cast<int>(left.points.size());
+  report.n_right = static_cast<int>(right.points.size());
+  if (left.points.empty() || right.points.empty()) {
+    throw std::runtime_error("no features found (" + std::to_string(report.n_left) + " left, " +
+                             std::to_string(report.n_right) +
+                             " right); lower the detector thresholds or use another --features");
+  }
+
+  start = Clock::now();
+  const ZnccMatcher zncc(left_grey, right_grey, options.zncc_window);
+  CandidateReport candidates =
+      BuildCandidates(left.points, right.points, zncc, calibration, options.candidates);
+  report.timing_ms.candidates = MillisecondsSince(start);
+  const hnn::MatchingProblem& problem = candidates.problem;
+  report.n_neurons = problem.n_neurons();
+  if (problem.candidates.empty()) {
+    throw std::runtime_error("no candidate matches passed the gating (" +
+                             std::to_string(candidates.pairs_tested) +
+                             " pairs tested); widen --max-disparity or the epipolar distance");
+  }
+
+  hnn::EngineKind engine = options.engine;
+  if (engine == hnn::EngineKind::kOpenCL && runtime == nullptr) {
+    engine = hnn::EngineKind::kCpu;
+    report.engine_notice = "no OpenCL device available: using the cpu engine";
+  }
+  switch (engine) {
+    case hnn::EngineKind::kThesis:
+      report.solve = hnn::SolveThesis(problem, options.energy, options.dynamics,
+                                      options.memory_budget_bytes);
+      break;
+    case hnn::EngineKind::kCpu:
+      report.solve = hnn::SolveCpu(problem, options.energy, options.dynamics,
+                                   options.memory_budget_bytes);
+      break;
+    case hnn::EngineKind::kOpenCL: {
+      hnn::OpenClEngine opencl(*runtime);
+      report.solve = opencl.Solve(problem, options.energy, options.dynamics,
+                                  options.memory_budget_bytes);
+      break;
+    }
+  }
+  report.n_connections = report.solve.n_connections;
+  report.timing_ms.weights = report.solve.weights_ms;
+  report.timing_ms.solve = report.solve.solve_ms;
+
+  start = Clock::now();
+  const std::vector<hnn::DecodedMatch> decoded =
+      hnn::Decode(problem, report.solve.activation, options.decode, &report.solve.potential);
+  report.matches.reserve(decoded.size());
+  for (const hnn::DecodedMatch& m : decoded) {
+    const hnn::Candidate& c = problem.candidates[static_cast<std::size_t>(m.neuron)];
+    report.matches.push_back({problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
+                              static_cast<float>(m.activation), c.left, c.column});
+  }
+  report.timing_ms.decode = MillisecondsSince(start);
+  report.timing_ms.total = MillisecondsSince(total_start);
+  return report;
+}
+
+}  // namespace hnnstereo::vision
