@@ -1,13 +1,149 @@
-// `hnnstereo bench`: placeholder until the benchmark lands (see below).
-#include <stdexcept>
+// `hnnstereo bench`: throughput of matching (engines x problem sizes) with StereoSGBM's time on
+// the same pair, measured in the same run.
+#include <unistd.h>
 
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "app/cli_support.h"
 #include "app/commands.h"
+#include "calib/atomic_file.h"
+#include "perf/throughput_bench.h"
 
 namespace hnnstereo::app {
+namespace {
+
+struct BenchArgs {
+  std::string out;
+  std::string sizes = "500,1000,2000,5000";
+  std::string engines = "opencl,cpu,thesis";
+  bool quick = false;
+  perf::ThroughputBenchOptions bench;
+  MatcherFlags flags;
+};
+
+std::vector<std::string> SplitCommas(const std::string& text) {
+  std::vector<std::string> parts;
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    if (!part.empty()) parts.push_back(part);
+  }
+  return parts;
+}
+
+void ProgressBar(int done, int total, const std::string& what) {
+  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  const int width = 30;
+  const int filled = total > 0 ? done * width / total : width;
+  std::fprintf(stderr, "%s[%.*s%*s] %3d/%d %-28s%s", tty ? "\r" : "", filled,
+               "##############################", width - filled, "", done, total, what.c_str(),
+               tty ? "" : "\n");
+  if (tty && done >= total) std::fputc('\n', stderr);
+  std::fflush(stderr);
+}
+
+void RunBench(BenchArgs& args) {
+  args.flags.Resolve();
+  perf::ThroughputBenchOptions& bench = args.bench;
+  bench.matcher = args.flags.options;
+  bench.max_disparity = bench.matcher.candidates.max_disparity;
+  bench.sparse_sizes.clear();
+  for (const std::string& size : SplitCommas(args.sizes)) {
+    try {
+      bench.sparse_sizes.push_back(std::stoi(size));
+    } catch (const std::exception&) {
+      throw std::invalid_argument("--sizes must be comma-separated feature counts (got '" + args.sizes + "')");
+    }
+  }
+  bench.engines.clear();
+  for (const std::string& name : SplitCommas(args.engines)) {
+    auto engine = vision::ParseEngine(name);
+    if (!engine) throw std::invalid_argument("unknown engine '" + name + "' in --engines");
+    bench.engines.push_back(*engine);
+  }
+  if (args.quick) {
+    bench.sparse_sizes = {500, 5000};
+    bench.repeats = 3;
+  }
+  bench.progress = ProgressBar;
+  const bool wants_opencl = std::find(bench.engines.begin(), bench.engines.end(),
+                                      hnn::EngineKind::kOpenCL) != bench.engines.end();
+  std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(wants_opencl ? hnn::EngineKind::kOpenCL : hnn::EngineKind::kCpu,
+                     args.flags.device);
+  const nlohmann::json json = perf::RunThroughputBench(bench, runtime.get());
+  calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
+
+  std::printf("%-16s %-7s %7s %9s %10s %9s %9s %5s %12s %8s\n", "case", "engine", "neurons",
+              "conn", "total ms", "weights", "solve", "iter", "energy", "prec1px");
+  for (const auto& run : json["runs"]) {
+    if (run.contains("skipped")) {
+      std::printf("%-16s %-7s skipped: %s\n", run["case"].get<std::string>().c_str(),
+                  run["engine"].get<std::string>().c_str(), run["skipped"].get<std::string>().c_str());
+      continue;
+    }
+    std::printf("%-16s %-7s %7d %9lld %10.1f %9.1f %9.1f %5d %12.2f %8s\n",
+                run["case"].get<std::string>().c_str(), run["engine_used"].get<std::string>().c_str(),
+                run["n_neurons"].get<int>(), run["n_connections"].get<long long>(),
+                run["ms"].get<double>(), run["weights_ms"].get<double>(),
+                run["solve_ms"].get<double>(), run["iterations"].get<int>(),
+                run["energy_final"].get<double>(),
+                run.contains("precision_1px")
+                    ? std::to_string(run["precision_1px"].get<double>()).substr(0, 5).c_str()
+                    : "-");
+  }
+  std::printf("StereoSGBM (same pair, %d disparities): %.1f ms\n",
+              json["stereo_sgbm"]["num_disparities"].get<int>(), json["stereo_sgbm"]["ms"].get<double>());
+  if (json.contains("dense_comparison")) {
+    const auto& d = json["dense_comparison"];
+    std::printf("dense %s: opencl %.1fx faster than thesis (weights + solve: %.1f vs %.1f ms); "
+                "energy %.3f vs %.3f\n",
+                d["case"].get<std::string>().c_str(), d["speedup_weights_plus_solve"].get<double>(),
+                d["opencl_weights_plus_solve_ms"].get<double>(),
+                d["thesis_weights_plus_solve_ms"].get<double>(), d["opencl_energy_final"].get<double>(),
+                d["thesis_energy_final"].get<double>());
+  }
+  std::printf("wrote %s\n", args.out.c_str());
+}
+
+}  // namespace
 
 void AddBenchCommand(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("bench", "Throughput of matching");
-  cmd->callback([] { throw std::runtime_error("bench is not implemented yet"); });
+  auto args = std::make_shared<BenchArgs>();
+  args->bench.left = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/im2.png";
+  args->bench.right = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/im6.png";
+  args->bench.ground_truth = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/disp2.png";
+  CLI::App* cmd = app.add_subcommand(
+      "bench",
+      "Throughput of matching: engines x problem sizes on a rectified pair (default: the "
+      "vendored Middlebury Teddy), medians of warmed-up repeats, with OpenCV StereoSGBM timed "
+      "on the same pair in the same run. Progress on stderr, a table on stdout, JSON in --out.");
+  cmd->add_option("--out", args->out, "Output BENCH.json")->required();
+  cmd->add_option("--left", args->bench.left, "Left image")->capture_default_str();
+  cmd->add_option("--right", args->bench.right, "Right image")->capture_default_str();
+  cmd->add_option("--ground-truth", args->bench.ground_truth,
+                  "Left disparity map for a precision column ('' = none)")
+      ->capture_default_str();
+  cmd->add_option("--ground-truth-scale", args->bench.ground_truth_scale,
+                  "Stored value / scale = disparity")
+      ->capture_default_str();
+  cmd->add_option("--sizes", args->sizes, "Sparse cases: --max-features values, comma-separated")
+      ->capture_default_str();
+  cmd->add_option("--dense-features", args->bench.dense_features,
+                  "Features per image of the thesis-sized --dense case (0 = none)")
+      ->capture_default_str();
+  cmd->add_option("--engines", args->engines, "Engines, comma-separated")->capture_default_str();
+  cmd->add_option("--repeats", args->bench.repeats, "Timed runs per case")->capture_default_str();
+  cmd->add_option("--warmup", args->bench.warmup, "Untimed runs per case first")->capture_default_str();
+  cmd->add_option("--thesis-max-neurons", args->bench.thesis_max_neurons,
+                  "Run the thesis engine only up to this many neurons")
+      ->capture_default_str();
+  cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");
+  args->flags.AddTo(cmd);
+  cmd->callback([args] { RunBench(*args); });
 }
 
 }  // namespace hnnstereo::app

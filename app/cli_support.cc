@@ -1,5 +1,8 @@
 #include "app/cli_support.h"
 
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -16,19 +19,29 @@ std::string Trim(const std::string& text) {
 
 }  // namespace
 
-std::string FlatYamlConfig::to_config(const CLI::App* app, bool default_also, bool, std::string) const {
-  std::ostringstream out;
-  for (const CLI::Option* option : app->get_options()) {
-    if (option->get_lnames().empty() || option->get_configurable() == false) continue;
-    std::string value = option->as<std::string>();
-    if (value.empty() && default_also) value = option->get_default_str();
-    if (!value.empty()) out << option->get_lnames()[0] << ": " << value << "\n";
+std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& arguments) {
+  std::vector<std::string> rest;
+  std::string config_path;
+  for (std::size_t t = 0; t < arguments.size(); ++t) {
+    if (arguments[t] == "--config" && t + 1 < arguments.size()) {
+      config_path = arguments[++t];
+    } else if (arguments[t].rfind("--config=", 0) == 0) {
+      config_path = arguments[t].substr(9);
+    } else {
+      rest.push_back(arguments[t]);
+    }
   }
-  return out.str();
-}
-
-std::vector<CLI::ConfigItem> FlatYamlConfig::from_config(std::istream& input) const {
-  std::vector<CLI::ConfigItem> config_items;
+  if (config_path.empty()) return arguments;
+  std::ifstream input(config_path);
+  if (!input) throw std::runtime_error("config file '" + config_path + "' cannot be read");
+  auto given = [&](const std::string& option) {
+    for (const std::string& argument : rest) {
+      if (argument == option || argument.rfind(option + "=", 0) == 0) return true;
+    }
+    return false;
+  };
+  // Options from the file go right after the subcommand; the command line wins on conflicts.
+  std::vector<std::string> from_file;
   std::string line;
   int number = 0;
   while (std::getline(input, line)) {
@@ -38,24 +51,34 @@ std::vector<CLI::ConfigItem> FlatYamlConfig::from_config(std::istream& input) co
     if (trimmed.empty() || trimmed == "---" || trimmed.rfind("%YAML", 0) == 0) continue;
     const auto colon = trimmed.find(':');
     if (colon == std::string::npos) {
-      throw CLI::ConversionError("config line " + std::to_string(number) + " is not 'key: value'");
+      throw std::runtime_error("config file '" + config_path + "' line " + std::to_string(number) +
+                               " is not 'key: value'");
     }
-    CLI::ConfigItem item;
-    item.name = Trim(trimmed.substr(0, colon));
-    for (char& c : item.name) {
+    std::string key = Trim(trimmed.substr(0, colon));
+    for (char& c : key) {
       if (c == '_') c = '-';
     }
+    const std::string option = "--" + key;
     std::string value = Trim(trimmed.substr(colon + 1));
-    if (!value.empty() && value.front() == '[' && value.back() == ']') {
-      std::istringstream list(value.substr(1, value.size() - 2));
-      std::string element;
-      while (std::getline(list, element, ',')) item.inputs.push_back(Trim(element));
+    if (given(option)) continue;
+    if (value == "true" || value == "yes" || value == "on") {
+      from_file.push_back(option);
+    } else if (value == "false" || value == "no" || value == "off") {
+      continue;
     } else {
-      item.inputs.push_back(value);
+      if (!value.empty() && value.front() == '[' && value.back() == ']') {
+        value = value.substr(1, value.size() - 2);
+      }
+      from_file.push_back(option);
+      from_file.push_back(Trim(value));
     }
-    config_items.push_back(std::move(item));
   }
-  return config_items;
+  std::vector<std::string> expanded;
+  const std::size_t head = std::min<std::size_t>(2, rest.size());  // program, subcommand
+  expanded.insert(expanded.end(), rest.begin(), rest.begin() + static_cast<long>(head));
+  expanded.insert(expanded.end(), from_file.begin(), from_file.end());
+  expanded.insert(expanded.end(), rest.begin() + static_cast<long>(head), rest.end());
+  return expanded;
 }
 
 void MatcherFlags::AddTo(CLI::App* cmd) {

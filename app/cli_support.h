@@ -11,14 +11,11 @@
 
 namespace hnnstereo::app {
 
-/// Reads "key: value" lines (flat YAML; '#' comments; lists as [a, b]) as CLI11 config items,
-/// so that `--config FILE.yml` can hold any long option of a subcommand.
-class FlatYamlConfig : public CLI::Config {
- public:
-  std::string to_config(const CLI::App* app, bool default_also, bool write_description,
-                        std::string prefix) const override;
-  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override;
-};
+/// Expands `--config FILE.yml` (flat YAML: "long-option-name: value" per line, '#' comments,
+/// `true`/`false` for flags, lists as [a, b]) into command-line arguments placed after the
+/// subcommand; options given on the command line win. Returns `arguments` unchanged when there is
+/// no --config. Throws std::runtime_error on an unreadable or malformed file.
+std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& arguments);
 
 /// Matcher options as command-line flags (features, gating, energy, dynamics, decoding).
 struct MatcherFlags {

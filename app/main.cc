@@ -5,7 +5,10 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <string>
+#include <vector>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 
 int main(int argc, char** argv) {
@@ -19,7 +22,11 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddCalibrateCommand(app);
   hnnstereo::app::AddBenchCommand(app);
   try {
-    app.parse(argc, argv);
+    std::vector<std::string> arguments(argv, argv + argc);
+    arguments = hnnstereo::app::ExpandConfigArguments(arguments);
+    // CLI11 parses a reversed vector without the program name.
+    std::vector<std::string> reversed(arguments.rbegin(), arguments.rend() - 1);
+    app.parse(reversed);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const std::exception& e) {

@@ -20,6 +20,7 @@ struct MatchArgs {
   std::string left, right, calib, out, report, overlay;
   bool rectified = false;
   bool quiet = false;
+  std::string config;  // consumed by ExpandConfigArguments in main
   MatcherFlags flags;
 };
 
@@ -101,8 +102,9 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--overlay", args->overlay, "Output PNG: features and matched features");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
   args->flags.AddTo(cmd);
-  cmd->config_formatter(std::make_shared<FlatYamlConfig>());
-  cmd->set_config("--config", "", "YAML file of options: 'long-option-name: value' per line");
+  cmd->add_option("--config", args->config,
+                  "YAML file of options: 'long-option-name: value' per line (e.g. "
+                  "'max-disparity: 64', 'rectified: true'); the command line wins");
   cmd->callback([args] { RunMatch(*args); });
 }
 

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -223,54 +224,140 @@ GridRotationChoice ChooseGridRotations(
     }
   }
 
-  // Candidate labelings: exhaustive when small, otherwise per first-view rotation a greedy
-  // pairwise choice for the other views.
-  std::vector<std::vector<int>> combos;
-  const double num_combos = std::pow(static_cast<double>(num_rotations),
-                                     static_cast<double>(num_views));
-  if (num_combos <= 16384.0) {
-    std::vector<int> combo(num_views, 0);
-    while (true) {
-      combos.push_back(combo);
-      size_t k = 0;
-      while (k < num_views && ++combo[k] == static_cast<int>(num_rotations)) combo[k++] = 0;
-      if (k == num_views) break;
-    }
-  } else {
-    for (size_t r0 = 0; r0 < num_rotations; ++r0) {
-      std::vector<int> combo(num_views, 0);
-      combo[0] = static_cast<int>(r0);
-      for (size_t v = 1; v < num_views; ++v) {
-        double best = std::numeric_limits<double>::infinity();
-        for (size_t r = 0; r < num_rotations; ++r) {
-          const double value = SmallestEigenvalue(normal[0][r0] + normal[v][r]);
-          if (value < best) {
-            best = value;
-            combo[v] = static_cast<int>(r);
-          }
-        }
+  std::vector<std::vector<Eigen::Vector4d>> world_normalised(num_views);
+  for (size_t v = 0; v < num_views; ++v) {
+    for (const auto& X : points3D_per_view[v]) world_normalised[v].push_back(T_world * X.homogeneous());
+  }
+  auto summed = [&](const std::vector<int>& combo) {
+    Matrix12d sum = Matrix12d::Zero();
+    for (size_t v = 0; v < combo.size(); ++v) sum += normal[v][static_cast<size_t>(combo[v])];
+    return sum;
+  };
+  // The algebraic residual of a labeling, or +infinity when its DLT camera does not see all the
+  // points on one side (cheirality, H&Z 6.2.3). Needed: with only two heights, turning one
+  // height's labels by 180 degrees fits a projective camera exactly, one that has that height
+  // behind it.
+  auto residual_of = [&](const std::vector<int>& combo, Matrix12d* sum_out) {
+    const Matrix12d sum = summed(combo);
+    if (sum_out) *sum_out = sum;
+    Eigen::Matrix<double, 12, 1> p;
+    const double value = SmallestEigenvalue(sum, &p);
+    const Eigen::Vector4d third_row = p.segment<4>(8);
+    int positive = 0, negative = 0;
+    for (size_t v = 0; v < combo.size(); ++v) {
+      for (const Eigen::Vector4d& X : world_normalised[v]) {
+        (third_row.dot(X) > 0.0 ? positive : negative) += 1;
       }
-      combos.push_back(combo);
+    }
+    return positive > 0 && negative > 0 ? std::numeric_limits<double>::infinity() : value;
+  };
+  // Seed: the first views, enough to span more than one plane (a single plane leaves the DLT
+  // degenerate for every labeling), at most 7 (4^7 = 16384 combinations), searched exhaustively.
+  size_t num_seed = std::min<size_t>(num_views, 2);
+  auto spans_volume = [&](size_t count) {
+    std::vector<Eigen::Vector3d> points;
+    for (size_t v = 0; v < count; ++v) {
+      points.insert(points.end(), points3D_per_view[v].begin(), points3D_per_view[v].end());
+    }
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& X : points) centroid += X / static_cast<double>(points.size());
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (const auto& X : points) scatter += (X - centroid) * (X - centroid).transpose();
+    const Eigen::Vector3d spread = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues();
+    return spread(0) > 1e-6 * spread(2);
+  };
+  while (num_seed < num_views && num_seed < 7 && !spans_volume(num_seed)) ++num_seed;
+  std::vector<std::vector<int>> seeds;
+  {
+    std::vector<int> combo(num_seed, 0);
+    while (true) {
+      seeds.push_back(combo);
+      size_t k = 0;
+      while (k < num_seed && ++combo[k] == static_cast<int>(num_rotations)) combo[k++] = 0;
+      if (k == num_seed) break;
     }
   }
-  std::vector<double> residuals(combos.size());
-  double best_residual = std::numeric_limits<double>::infinity();
-  double scale = 0.0;
+  std::vector<double> seed_residuals(seeds.size());
+  double best_seed = std::numeric_limits<double>::infinity();
+  for (size_t c = 0; c < seeds.size(); ++c) {
+    Matrix12d sum;
+    seed_residuals[c] = residual_of(seeds[c], &sum);
+    best_seed = std::min(best_seed, seed_residuals[c]);
+  }
+  // Extend each equally good seed view by view: the rotation that keeps the accumulated system
+  // most consistent (smallest eigenvalue) joins.
+  std::vector<std::vector<int>> combos;
+  for (size_t c = 0; c < seeds.size(); ++c) {
+    // Every cheiral seed is extended: the algebraic residual is not invariant under the exact
+    // relabelings of two planes, so only the geometric error of full labelings decides.
+    if (!std::isfinite(seed_residuals[c]) && std::isfinite(best_seed)) continue;
+    std::vector<int> combo = seeds[c];
+    Matrix12d sum = summed(combo);
+    for (size_t v = num_seed; v < num_views; ++v) {
+      double best = std::numeric_limits<double>::infinity();
+      int best_rotation = 0;
+      for (size_t r = 0; r < num_rotations; ++r) {
+        const double value = SmallestEigenvalue(sum + normal[v][r]);
+        if (value < best) {
+          best = value;
+          best_rotation = static_cast<int>(r);
+        }
+      }
+      combo.push_back(best_rotation);
+      sum += normal[v][static_cast<size_t>(best_rotation)];
+    }
+    combos.push_back(combo);
+  }
+  std::sort(combos.begin(), combos.end());
+  combos.erase(std::unique(combos.begin(), combos.end()), combos.end());
+  // Geometric reprojection RMS (px) of the linear DLT of each full labeling; +inf if not cheiral.
+  std::vector<double> rms(combos.size());
+  std::vector<ProjectionMatrix> cameras(combos.size());
+  double best_rms = std::numeric_limits<double>::infinity();
+  double best_algebraic = std::numeric_limits<double>::infinity();
   for (size_t c = 0; c < combos.size(); ++c) {
-    Matrix12d sum = Matrix12d::Zero();
-    for (size_t v = 0; v < num_views; ++v) sum += normal[v][static_cast<size_t>(combos[c][v])];
-    residuals[c] = SmallestEigenvalue(sum);
-    best_residual = std::min(best_residual, residuals[c]);
-    scale = std::max(scale, sum.trace());
+    Matrix12d sum;
+    const double algebraic = residual_of(combos[c], &sum);
+    Eigen::Matrix<double, 12, 1> p;
+    SmallestEigenvalue(sum, &p);
+    ProjectionMatrix P_normalised;
+    for (int row = 0; row < 3; ++row) {
+      for (int col = 0; col < 4; ++col) P_normalised(row, col) = p(4 * row + col);
+    }
+    cameras[c] = T_image.inverse() * P_normalised * T_world;
+    double sum_sq = 0.0;
+    size_t count = 0;
+    for (size_t v = 0; v < num_views; ++v) {
+      const std::vector<int>& rotation = rotations[static_cast<size_t>(combos[c][v])];
+      for (size_t i = 0; i < points3D_per_view[v].size(); ++i) {
+        const Eigen::Vector2d& measured =
+            canonical_centres_per_view[v][static_cast<size_t>(rotation[i])];
+        sum_sq += (Project(cameras[c], points3D_per_view[v][i]) - measured).squaredNorm();
+        ++count;
+      }
+    }
+    rms[c] = std::isfinite(algebraic) ? std::sqrt(sum_sq / static_cast<double>(count))
+                                      : std::numeric_limits<double>::infinity();
+    if (rms[c] < best_rms) {
+      best_rms = rms[c];
+      best_algebraic = algebraic;
+    }
   }
   std::vector<size_t> equivalent;
   for (size_t c = 0; c < combos.size(); ++c) {
-    if (residuals[c] <= 1.25 * best_residual + 1e-12 * scale) equivalent.push_back(c);
+    if (rms[c] <= 1.25 * best_rms + 0.02) equivalent.push_back(c);
+  }
+  if (equivalent.empty()) {  // nothing cheiral: fall back to all labelings
+    for (size_t c = 0; c < combos.size(); ++c) equivalent.push_back(c);
   }
   GridRotationChoice choice;
-  choice.algebraic_residual = best_residual;
+  choice.algebraic_residual = best_algebraic;
+  choice.reprojection_rms_px = best_rms;
   choice.num_equivalent = static_cast<int>(equivalent.size());
   size_t chosen = equivalent.front();
+  for (size_t c : equivalent) {
+    if (rms[c] < rms[chosen]) chosen = c;
+  }
   if (equivalent.size() > 1) {
     // Orientation rule: world +X appears closest to image +u (rightward).
     choice.decided_by_image_rule = true;
@@ -279,17 +366,8 @@ GridRotationChoice ChooseGridRotations(
     centroid /= static_cast<double>(all_world.size());
     double best_alignment = -std::numeric_limits<double>::infinity();
     for (size_t c : equivalent) {
-      Matrix12d sum = Matrix12d::Zero();
-      for (size_t v = 0; v < num_views; ++v) sum += normal[v][static_cast<size_t>(combos[c][v])];
-      Eigen::Matrix<double, 12, 1> p;
-      SmallestEigenvalue(sum, &p);
-      ProjectionMatrix P_normalised;
-      for (int row = 0; row < 3; ++row) {
-        for (int col = 0; col < 4; ++col) P_normalised(row, col) = p(4 * row + col);
-      }
-      const ProjectionMatrix P = T_image.inverse() * P_normalised * T_world;
       const Eigen::Vector2d direction =
-          Project(P, centroid + Eigen::Vector3d::UnitX()) - Project(P, centroid);
+          Project(cameras[c], centroid + Eigen::Vector3d::UnitX()) - Project(cameras[c], centroid);
       const double alignment = direction.x() / std::max(direction.norm(), 1e-300);
       if (alignment > best_alignment) {
         best_alignment = alignment;

@@ -48,14 +48,19 @@ struct GridRotationChoice {
   bool decided_by_image_rule = false;
   int num_equivalent = 1;              ///< labelings explaining the data equally well
   double algebraic_residual = 0.0;     ///< smallest eigenvalue of the normalised DLT system
+  double reprojection_rms_px = 0.0;    ///< RMS of the linear DLT of the chosen labeling (px)
 };
 
 /// Chooses, per view v, the grid rotation r_v (applied as centres'[i] = centres[rotations[r][i]])
 /// under which all views together are best explained by one projective camera: the labeling
-/// with the smallest algebraic DLT residual over all views (exhaustive over the combinations,
-/// pairwise-greedy beyond 16384 of them). Labelings within a factor 1.25 of the best residual are
-/// equivalent; among them the one whose world +X axis appears closest to the image's +u direction
-/// is chosen (docs/calibration.md, orientation rule).
+/// whose camera sees every point in front of it (cheirality) with the smallest reprojection RMS
+/// of the linear DLT. Search: exhaustive over the first views (enough to leave one plane, at most
+/// 7); from every cheiral seed, each further view joins with the rotation that keeps the
+/// accumulated DLT system most consistent (smallest eigenvalue). Labelings with an RMS within
+/// 1.25 x best + 0.02 px are equivalent (the poses cannot tell them apart: two heights only, or
+/// moves along one vertical axis); among them the one whose world +X axis appears closest to the
+/// image's +u direction is chosen (docs/calibration.md, orientation rule).
+/// @throws std::invalid_argument on inconsistent sizes.
 GridRotationChoice ChooseGridRotations(
     const std::vector<std::vector<Eigen::Vector3d>>& points3D_per_view,
     const std::vector<std::vector<Eigen::Vector2d>>& canonical_centres_per_view,

@@ -403,14 +403,28 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
             std::vector<Eigen::Vector2d> image_points(n_grid);
             for (int i = 0; i < n_grid; ++i) image_points[i] = blobs[assignment[i]].centre_px;
             const Eigen::Matrix3d H_fit = HomographyLeastSquares(grid_points, image_points);
-            double sum_sq = 0.0, sum_spacing = 0.0;
-            for (int i = 0; i < n_grid; ++i) {
-              const Eigen::Vector2d predicted = Apply(H_fit, grid_points[i].x(), grid_points[i].y());
-              sum_sq += (predicted - image_points[i]).squaredNorm();
-              sum_spacing +=
-                  (Apply(H_fit, grid_points[i].x() + 1, grid_points[i].y()) - predicted).norm();
+            // Normalise by the spacing measured between neighbouring blobs, not by the fitted
+            // homography (a near-degenerate H has huge spacings and would hide its residual).
+            double sum_spacing = 0.0;
+            int num_spacings = 0;
+            for (int r = 0; r < rows; ++r) {
+              for (int col = 0; col < cols; ++col) {
+                const Eigen::Vector2d& p = image_points[r * cols + col];
+                if (col + 1 < cols) sum_spacing += (image_points[r * cols + col + 1] - p).norm();
+                if (r + 1 < rows) sum_spacing += (image_points[(r + 1) * cols + col] - p).norm();
+                num_spacings += (col + 1 < cols) + (r + 1 < rows);
+              }
             }
-            const double residual = std::sqrt(sum_sq / n_grid) / (sum_spacing / n_grid);
+            const double mean_spacing = sum_spacing / num_spacings;
+            double sum_sq = 0.0, worst = 0.0;
+            for (int i = 0; i < n_grid; ++i) {
+              const double error =
+                  (Apply(H_fit, grid_points[i].x(), grid_points[i].y()) - image_points[i]).norm();
+              sum_sq += error * error;
+              worst = std::max(worst, error);
+            }
+            if (!H_fit.allFinite() || worst > options.max_prediction_error * mean_spacing) continue;
+            const double residual = std::sqrt(sum_sq / n_grid) / mean_spacing;
             if (residual < best_residual) {
               best_residual = residual;
               best_assignment = assignment;

@@ -110,6 +110,7 @@ SolveReport SolveThesis(const MatchingProblem& problem, const EnergyOptions& ene
   // Recompute from scratch: the incremental sum drifts by rounding over many updates.
   report.energy_final = Energy(layout, compatibility, biases, V, energy);
   report.activation = std::move(V);
+  report.potential = std::move(net_input);
   return report;
 }
 

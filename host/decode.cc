@@ -20,11 +20,13 @@ std::vector<DecodedMatch> Decode(const MatchingProblem& problem,
                                  const std::vector<double>& activation_in,
                                  const DecodeOptions& options,
                                  const std::vector<double>* potential) {
+  if (potential && potential->empty()) potential = nullptr;  // engine gave none
   if (activation_in.size() != problem.candidates.size() ||
       (potential && potential->size() != activation_in.size())) {
-    throw std::invalid_argument("decode: " + std::to_string(activation_in.size()) +
-                                " activations for " + std::to_string(problem.candidates.size()) +
-                                " neurons");
+    throw std::invalid_argument(
+        "decode: " + std::to_string(activation_in.size()) + " activations and " +
+        std::to_string(potential ? potential->size() : 0) + " potentials for " +
+        std::to_string(problem.candidates.size()) + " neurons");
   }
   // Rank by the potential u when given (V = g(u) is monotone, so the order is the same in exact
   // arithmetic, but saturated activations tie in float while u still tells them apart).

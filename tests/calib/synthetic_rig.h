@@ -43,24 +43,26 @@ struct SyntheticPlacement {
   RenderedCircleTarget left, right;
 };
 
-// Renders `num_heights` placements of `grid` at random poses (origin within +-max_offset_mm of
-// the work centre, heights `height_step_mm` apart, yaw uniform in [0, 360) when random_yaw),
-// re-drawing any pose not fully visible in both images.
+// Renders `num_placements` placements of `grid` at random poses: plate centre within
+// +-max_offset_mm of the work centre, placement h at height (h % num_levels) * height_step_mm
+// (+-5 mm), yaw uniform in [0, 360) when random_yaw; a pose not fully visible in both images is
+// drawn again. num_levels = 0 means one level per placement.
 inline std::vector<SyntheticPlacement> RenderRandomPlacements(
-    const StereoRig& rig, const CircleGridGeometry& grid, int num_heights, std::uint64_t seed,
+    const StereoRig& rig, const CircleGridGeometry& grid, int num_placements, std::uint64_t seed,
     CircleTargetRenderOptions render, bool random_yaw = true, double max_offset_mm = 40.0,
-    double height_step_mm = 50.0) {
+    double height_step_mm = 50.0, int num_levels = 0) {
+  const int levels = num_levels > 0 ? num_levels : num_placements;
   std::mt19937_64 generator(seed);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   std::vector<SyntheticPlacement> placements;
-  for (int h = 0; h < num_heights; ++h) {
-    for (int attempt = 0; attempt < 100; ++attempt) {
+  for (int h = 0; h < num_placements; ++h) {
+    for (int attempt = 0; attempt < 5000; ++attempt) {
       const double yaw = random_yaw ? 180.0 + 180.0 * uniform(generator) : 0.0;
       // Target centre near the work centre; origin = circle (0, 0).
       const Eigen::Vector3d centre =
           rig.work_centre + Eigen::Vector3d(max_offset_mm * uniform(generator),
                                             max_offset_mm * uniform(generator),
-                                            h * height_step_mm + 5.0 * uniform(generator));
+                                            (h % levels) * height_step_mm + 5.0 * uniform(generator));
       const Eigen::Vector3d half_extent(0.5 * (grid.cols - 1) * grid.pitch_mm,
                                         0.5 * (grid.rows - 1) * grid.pitch_mm, 0.0);
       const Eigen::Matrix4d at_centre = WorldFromTargetFlat(centre, yaw);
@@ -68,6 +70,22 @@ inline std::vector<SyntheticPlacement> RenderRandomPlacements(
           (at_centre * (-half_extent).homogeneous()).hnormalized();
       SyntheticPlacement placement;
       placement.world_from_target = WorldFromTargetFlat(origin, yaw);
+      // Cheap visibility check of the plate corners before rendering.
+      bool visible = true;
+      for (const ProjectionMatrix* P : {&rig.P1, &rig.P2}) {
+        for (int corner = 0; corner < 4; ++corner) {
+          const double margin = render.plate_margin_mm + 2.0;
+          const Eigen::Vector3d in_target(
+              (corner % 2 == 0) ? -margin : (grid.cols - 1) * grid.pitch_mm + margin,
+              (corner / 2 == 0) ? -margin : (grid.rows - 1) * grid.pitch_mm + margin, 0.0);
+          const Eigen::Vector3d x =
+              *P * (placement.world_from_target * in_target.homogeneous());
+          const Eigen::Vector2d pixel = x.hnormalized();
+          visible = visible && x.z() > 0 && pixel.x() > 1 && pixel.y() > 1 &&
+                    pixel.x() < render.image_width - 2 && pixel.y() < render.image_height - 2;
+        }
+      }
+      if (!visible) continue;
       render.random_seed = seed * 1000 + static_cast<std::uint64_t>(h * 10 + attempt) * 2;
       placement.left = RenderCircleTarget(rig.P1, placement.world_from_target, grid, render);
       render.random_seed += 1;

@@ -1,0 +1,221 @@
+#include "perf/throughput_bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+
+#include "vision/image.h"
+
+namespace hnnstereo::perf {
+namespace {
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t mid = values.size() / 2;
+  return values.size() % 2 ? values[mid] : 0.5 * (values[mid - 1] + values[mid]);
+}
+
+struct Case {
+  std::string name;
+  int max_features;
+  bool dense;
+};
+
+// Share of matches within 1 px of the ground truth (where it is known).
+double Precision(const vision::MatchReport& report, const cv::Mat& disparity, double scale) {
+  int known = 0, good = 0;
+  for (const auto& m : report.matches) {
+    const int x = static_cast<int>(std::lround(m.left.x()));
+    const int y = static_cast<int>(std::lround(m.left.y()));
+    if (x < 0 || y < 0 || x >= disparity.cols || y >= disparity.rows) continue;
+    const double truth = disparity.at<std::uint8_t>(y, x) / scale;
+    if (truth <= 0) continue;
+    ++known;
+    if (std::abs((m.left.x() - m.right.x()) - truth) <= 1.0) ++good;
+  }
+  return known ? static_cast<double>(good) / known : 0.0;
+}
+
+}  // namespace
+
+std::string ThroughputBenchOptions::Check() const {
+  if (left.empty() || right.empty()) return "bench needs a left and a right image";
+  if (repeats < 1) return "repeats must be >= 1";
+  if (warmup < 0) return "warmup must be >= 0";
+  if (!(max_disparity > 0)) return "max_disparity must be positive";
+  for (int size : sparse_sizes) {
+    if (size < 1) return "problem sizes must be positive feature counts";
+  }
+  if (dense_features < 0) return "dense_features must be >= 0";
+  if (engines.empty()) return "no engines to benchmark";
+  return matcher.Check();
+}
+
+nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Runtime* runtime) {
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  const vision::LoadedImage left = vision::LoadImage(options.left);
+  const vision::LoadedImage right = vision::LoadImage(options.right);
+  vision::CheckSameSize(left, right);
+  cv::Mat ground_truth;
+  if (!options.ground_truth.empty()) {
+    ground_truth = cv::imread(options.ground_truth, cv::IMREAD_GRAYSCALE);
+    if (ground_truth.empty()) {
+      throw std::runtime_error("cannot read ground truth '" + options.ground_truth + "'");
+    }
+  }
+
+  std::vector<Case> cases;
+  for (int size : options.sparse_sizes) cases.push_back({"sparse-" + std::to_string(size), size, false});
+  if (options.dense_features > 0) {
+    cases.push_back({"dense-" + std::to_string(options.dense_features) + "x" +
+                         std::to_string(options.dense_features),
+                     options.dense_features, true});
+  }
+  const int per_run = options.warmup + options.repeats;
+  const int total = static_cast<int>(cases.size() * options.engines.size()) * per_run + options.repeats + 1;
+  int done = 0;
+  auto progress = [&](const std::string& what) {
+    ++done;
+    if (options.progress) options.progress(done, total, what);
+  };
+
+  nlohmann::json json;
+  json["left"] = options.left;
+  json["right"] = options.right;
+  json["image_size"] = {left.grey.cols, left.grey.rows};
+  json["device"] = runtime ? runtime->description() : "none (opencl engine falls back to cpu)";
+  json["repeats"] = options.repeats;
+  json["warmup"] = options.warmup;
+  json["bytes_per_second_model"] =
+      "per Euler step: 4 B weight + 4 B activation per connection, 32 B per neuron (state, "
+      "field, bias, sums); thesis engine: 4 B weight + 8 B activation per connection visited";
+  nlohmann::json runs = nlohmann::json::array();
+  nlohmann::json dense_by_engine;
+
+  for (const Case& c : cases) {
+    for (hnn::EngineKind engine : options.engines) {
+      const std::string what = std::string(vision::EngineName(engine)) + " " + c.name;
+      vision::MatcherOptions matcher = options.matcher;
+      matcher.engine = engine;
+      matcher.features.max_features = c.max_features;
+      matcher.candidates.rectified = true;
+      matcher.candidates.max_disparity = options.max_disparity;
+      matcher.candidates.dense = c.dense;
+      nlohmann::json run;
+      run["case"] = c.name;
+      run["engine"] = vision::EngineName(engine);
+      std::vector<double> total_ms, solve_ms, weights_ms;
+      vision::MatchReport last;
+      int runs_done = 0;
+      try {
+        for (int r = 0; r < per_run; ++r, ++runs_done) {
+          if (engine == hnn::EngineKind::kThesis && r == 0) {
+            // Skip the thesis engine on networks too big for its dense N x N weights.
+            vision::MatcherOptions probe = matcher;
+            probe.engine = hnn::EngineKind::kCpu;
+            probe.dynamics.max_steps = 0;
+            const auto sized = vision::MatchStereo(left.grey, right.grey, nullptr, probe, nullptr);
+            if (sized.n_neurons > options.thesis_max_neurons) {
+              throw std::length_error(std::to_string(sized.n_neurons) + " neurons > thesis_max_neurons " +
+                                      std::to_string(options.thesis_max_neurons));
+            }
+            matcher.dynamics.max_updates =
+                std::max(matcher.dynamics.max_updates, options.thesis_max_sweeps * sized.n_neurons);
+          }
+          last = vision::MatchStereo(left.grey, right.grey, nullptr, matcher, runtime);
+          if (r >= options.warmup) {
+            total_ms.push_back(last.timing_ms.total);
+            solve_ms.push_back(last.timing_ms.solve);
+            weights_ms.push_back(last.timing_ms.weights);
+          }
+          progress(what);
+        }
+      } catch (const std::length_error& e) {
+        run["skipped"] = e.what();
+        done += per_run - runs_done;
+        runs.push_back(run);
+        continue;
+      }
+      const double solve = Median(solve_ms);
+      const auto connections = static_cast<double>(last.n_connections);
+      const double iterations = last.solve.iterations;
+      const bool thesis = engine == hnn::EngineKind::kThesis;
+      // Connections visited: every connection per Euler step; n_neurons per thesis update.
+      const double visited = thesis ? iterations * static_cast<double>(last.n_neurons)
+                                    : iterations * connections;
+      const double bytes = thesis ? visited * 12.0
+                                  : iterations * (connections * 8.0 + last.n_neurons * 32.0);
+      run["engine_used"] = last.solve.engine;
+      run["n_left"] = last.n_left;
+      run["n_right"] = last.n_right;
+      run["n_neurons"] = last.n_neurons;
+      run["n_connections"] = last.n_connections;
+      run["n_matches"] = last.matches.size();
+      run["iterations"] = last.solve.iterations;
+      run["converged"] = last.solve.converged;
+      run["energy_initial"] = last.solve.energy_initial;
+      run["energy_final"] = last.solve.energy_final;
+      run["ms"] = Median(total_ms);
+      run["total_ms_runs"] = total_ms;
+      run["solve_ms"] = solve;
+      run["weights_ms"] = Median(weights_ms);
+      run["connections_per_second"] = solve > 0 ? visited / (solve / 1000.0) : 0.0;
+      run["bytes_per_second"] = solve > 0 ? bytes / (solve / 1000.0) : 0.0;
+      if (!ground_truth.empty()) {
+        run["precision_1px"] = Precision(last, ground_truth, options.ground_truth_scale);
+      }
+      if (c.dense) dense_by_engine[std::string(vision::EngineName(engine))] = run;
+      runs.push_back(run);
+    }
+  }
+  json["runs"] = runs;
+
+  // OpenCV StereoSGBM on the same pair, same disparity range, in the same run.
+  {
+    const int num_disparities = static_cast<int>(std::ceil((options.max_disparity + 1) / 16.0)) * 16;
+    const int block = 5;
+    cv::Ptr<cv::StereoSGBM> sgbm =
+        cv::StereoSGBM::create(0, num_disparities, block, 8 * block * block, 32 * block * block);
+    cv::Mat disparity;
+    sgbm->compute(left.grey, right.grey, disparity);  // warm-up
+    progress("StereoSGBM");
+    std::vector<double> sgbm_ms;
+    for (int r = 0; r < options.repeats; ++r) {
+      const auto start = std::chrono::steady_clock::now();
+      sgbm->compute(left.grey, right.grey, disparity);
+      sgbm_ms.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+      progress("StereoSGBM");
+    }
+    json["stereo_sgbm"] = {{"ms", Median(sgbm_ms)}, {"num_disparities", num_disparities},
+                           {"block_size", block}, {"mode", "SGBM"}};
+  }
+
+  if (dense_by_engine.contains("thesis") && dense_by_engine.contains("opencl") &&
+      !dense_by_engine["thesis"].contains("skipped")) {
+    const auto& t = dense_by_engine["thesis"];
+    const auto& o = dense_by_engine["opencl"];
+    const double thesis_ms = t["weights_ms"].get<double>() + t["solve_ms"].get<double>();
+    const double opencl_ms = o["weights_ms"].get<double>() + o["solve_ms"].get<double>();
+    json["dense_comparison"] = {
+        {"case", t["case"]},
+        {"thesis_weights_plus_solve_ms", thesis_ms},
+        {"opencl_weights_plus_solve_ms", opencl_ms},
+        {"speedup_weights_plus_solve", opencl_ms > 0 ? thesis_ms / opencl_ms : 0.0},
+        {"speedup_solve", o["solve_ms"].get<double>() > 0
+                              ? t["solve_ms"].get<double>() / o["solve_ms"].get<double>() : 0.0},
+        {"speedup_total", o["ms"].get<double>() > 0 ? t["ms"].get<double>() / o["ms"].get<double>() : 0.0},
+        {"thesis_energy_final", t["energy_final"]},
+        {"opencl_energy_final", o["energy_final"]},
+        {"thesis_converged", t["converged"]},
+        {"opencl_energy_not_higher",
+         o["energy_final"].get<double>() <= t["energy_final"].get<double>() + 1e-6 * std::abs(t["energy_final"].get<double>())}};
+  }
+  return json;
+}
+
+}  // namespace hnnstereo::perf

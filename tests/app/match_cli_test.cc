@@ -1,0 +1,171 @@
+// The match command's contract: files, report keys, and bad input (a one-line reason, a
+// non-zero exit, no output file).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kTeddy = std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy";
+
+struct Result {
+  int exit_code;
+  std::string output;
+};
+
+Result RunCli(const std::string& arguments, const std::string& environment = "") {
+  const fs::path log = fs::temp_directory_path() / ("hnnstereo_cli_" + std::to_string(::getpid()) + ".log");
+  const std::string command = environment + " " + HNNSTEREO_BINARY + " " + arguments + " > " +
+                              log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  fs::remove(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+class MatchCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("hnnstereo_match_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string Teddy(const std::string& extra) const {
+    return "match --left " + kTeddy + "/im2.png --right " + kTeddy + "/im6.png --out " +
+           Path("m.csv") + " --max-features 1500 " + extra;
+  }
+  // A failed command prints one line starting "hnnstereo: error:" and writes nothing.
+  void ExpectCleanFailure(const Result& result, const std::string& reason) const {
+    EXPECT_NE(result.exit_code, 0) << result.output;
+    EXPECT_NE(result.output.find("hnnstereo: error: "), std::string::npos) << result.output;
+    EXPECT_NE(result.output.find(reason), std::string::npos) << result.output;
+    for (const auto& entry : fs::directory_iterator(dir_)) {
+      const std::string name = entry.path().filename().string();
+      EXPECT_TRUE(name.rfind("input", 0) == 0) << "unexpected output file " << name;
+    }
+  }
+  fs::path dir_;
+};
+
+TEST_F(MatchCli, WritesTheContractFiles) {
+  const Result result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json") +
+                                  " --overlay " + Path("o.png")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  std::ifstream csv(Path("m.csv"));
+  std::string header, row;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "xl,yl,xr,yr,activation");
+  int rows = 0;
+  while (std::getline(csv, row)) ++rows;
+  EXPECT_GT(rows, 300);
+  std::ifstream report_file(Path("r.json"));
+  const nlohmann::json report = nlohmann::json::parse(report_file);
+  for (const char* key : {"engine", "device", "n_left", "n_right", "n_neurons", "n_connections",
+                          "iterations", "energy_initial", "energy_final", "timing_ms"}) {
+    EXPECT_TRUE(report.contains(key)) << key;
+  }
+  for (const char* key : {"features", "candidates", "weights", "solve", "decode", "total"}) {
+    EXPECT_TRUE(report["timing_ms"].contains(key)) << key;
+  }
+  EXPECT_EQ(report["n_matches"].get<int>(), rows);
+  EXPECT_LT(report["energy_final"].get<double>(), report["energy_initial"].get<double>());
+  const cv::Mat overlay = cv::imread(Path("o.png"));
+  EXPECT_EQ(overlay.cols, 900);
+  EXPECT_EQ(overlay.rows, 375);
+}
+
+TEST_F(MatchCli, HelpTeachesTheOptions) {
+  const Result result = RunCli("match --help");
+  EXPECT_EQ(result.exit_code, 0);
+  for (const char* option : {"--left", "--rectified", "--calib", "--max-disparity", "--engine",
+                             "--dense", "--report", "--overlay", "--config", "--zrange"}) {
+    EXPECT_NE(result.output.find(option), std::string::npos) << option;
+  }
+}
+
+TEST_F(MatchCli, MissingImage) {
+  ExpectCleanFailure(RunCli("match --left " + Path("nope.png") + " --right " + kTeddy +
+                         "/im6.png --rectified --out " + Path("m.csv")),
+                     "does not exist");
+}
+
+TEST_F(MatchCli, UnreadableImage) {
+  std::ofstream(Path("input_text.png")) << "not an image";
+  ExpectCleanFailure(RunCli("match --left " + Path("input_text.png") + " --right " + kTeddy +
+                         "/im6.png --rectified --out " + Path("m.csv")),
+                     "cannot be read");
+}
+
+TEST_F(MatchCli, DifferentImageSizes) {
+  cv::imwrite(Path("input_small.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
+  ExpectCleanFailure(RunCli("match --left " + kTeddy + "/im2.png --right " + Path("input_small.png") +
+                         " --rectified --out " + Path("m.csv")),
+                     "size");
+}
+
+TEST_F(MatchCli, NoFeatures) {
+  cv::imwrite(Path("input_flat_l.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
+  cv::imwrite(Path("input_flat_r.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
+  ExpectCleanFailure(RunCli("match --left " + Path("input_flat_l.png") + " --right " +
+                         Path("input_flat_r.png") + " --rectified --out " + Path("m.csv")),
+                     "no features");
+}
+
+TEST_F(MatchCli, NoCandidates) {
+  ExpectCleanFailure(RunCli(Teddy("--rectified --min-disparity 443 --max-disparity 449")),
+                     "no candidate");
+}
+
+TEST_F(MatchCli, NaNInTheFundamentalMatrix) {
+  std::ofstream(Path("input_cal.yml"))
+      << "%YAML:1.0\n---\nP1: !!opencv-matrix\n   rows: 3\n   cols: 4\n   dt: d\n"
+         "   data: [ 500., 0., 225., 0., 0., 500., 187., 0., 0., 0., 1., 0. ]\n"
+         "P2: !!opencv-matrix\n   rows: 3\n   cols: 4\n   dt: d\n"
+         "   data: [ 500., 0., 225., -50000., 0., 500., 187., 0., 0., 0., 1., 0. ]\n"
+         "F: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+         "   data: [ 0., 0., 0., 0., 0., -1., 0., .Nan, 0. ]\n";
+  ExpectCleanFailure(RunCli(Teddy("--calib " + Path("input_cal.yml"))), "non-finite");
+}
+
+TEST_F(MatchCli, OverTheMemoryBudget) {
+  const Result result = RunCli(Teddy("--rectified --dense --memory-budget-mb 1"));
+  ExpectCleanFailure(result, "memory budget");
+  EXPECT_NE(result.output.find("neurons"), std::string::npos) << result.output;
+}
+
+TEST_F(MatchCli, NoOpenClPlatformFallsBackToTheCpuEngine) {
+  const Result result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json")),
+                            "OCL_ICD_VENDORS=" + Path("no_vendors") + " OPENCL_VENDOR_PATH=" +
+                                Path("no_vendors"));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("notice"), std::string::npos) << result.output;
+  std::ifstream report_file(Path("r.json"));
+  EXPECT_EQ(nlohmann::json::parse(report_file)["engine"], "cpu");
+}
+
+TEST_F(MatchCli, ConfigFileSetsOptions) {
+  std::ofstream(Path("input_options.yml")) << "# matcher options\nmax_disparity: 64\nengine: cpu\nrectified: true\n";
+  const Result result = RunCli(Teddy("--config " + Path("input_options.yml") + " --report " + Path("r.json")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  std::ifstream report_file(Path("r.json"));
+  const auto report = nlohmann::json::parse(report_file);
+  EXPECT_EQ(report["engine"], "cpu");
+  EXPECT_EQ(report["candidate_options"]["max_disparity"].get<double>(), 64.0);
+}
+
+}  // namespace
