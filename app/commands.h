@@ -8,5 +8,10 @@ namespace hnnstereo::app {
 void AddMatchCommand(CLI::App& app);
 void AddBenchCommand(CLI::App& app);
 void AddCalibrateCommand(CLI::App& app);
+void AddRenderCommand(CLI::App& app);
+void AddPickCommand(CLI::App& app);
+void AddDemoCommand(CLI::App& app);
+void AddProbeCommand(CLI::App& app);
+void AddEvalCommand(CLI::App& app);
 
 }  // namespace hnnstereo::app

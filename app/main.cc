@@ -21,6 +21,11 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddMatchCommand(app);
   hnnstereo::app::AddCalibrateCommand(app);
   hnnstereo::app::AddBenchCommand(app);
+  hnnstereo::app::AddEvalCommand(app);
+  hnnstereo::app::AddRenderCommand(app);
+  hnnstereo::app::AddPickCommand(app);
+  hnnstereo::app::AddDemoCommand(app);
+  hnnstereo::app::AddProbeCommand(app);
   try {
     std::vector<std::string> arguments(argv, argv + argc);
     arguments = hnnstereo::app::ExpandConfigArguments(arguments);
