@@ -52,14 +52,14 @@ float compatibility_function(float X, const EnergyParams p) {
 #else
   const float z = p.lambda * (X - p.theta);
   if (z > 80.0f) return -1.0f;
-  return 2.0f / (1.0f + exp(z)) - 1.0f;
+  return 2.0f / (1.0f + native_exp(z)) - 1.0f;
 #endif
 }
 
 float compatibility(float2 la, float2 ra, float ma, float2 lb, float2 rb, float mb,
                     const EnergyParams p) {
 #if OBJECTIVE == 0
-  const float g = 2.0f * exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;  // eq. 6.8
+  const float g = 2.0f * native_exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;  // eq. 6.8
   const float s = p.W1 * g + p.W2 * (ma + mb);                                   // eq. 6.7
   return compatibility_function(s < MIN_COMPAT_DENOMINATOR ? INFINITY : 1.0f / s, p);
 #elif OBJECTIVE == 1
@@ -71,7 +71,7 @@ float compatibility(float2 la, float2 ra, float ma, float2 lb, float2 rb, float 
 #elif OBJECTIVE == 3
   return (ma + mb + 2.0f) / 4.0f;
 #else
-  const float g = 2.0f * exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;
+  const float g = 2.0f * native_exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;
   return g * (ma + 1.0f) * (mb + 1.0f) / 4.0f;
 #endif
 }

@@ -283,7 +283,8 @@ TEST(FeatureDetectorName, RoundTripsThroughParse) {
   EXPECT_FALSE(ParseFeatureDetector("").has_value());
 }
 
-// Real data: counts and timing on Middlebury Teddy (timing reported, loosely bounded).
+// Real data: counts on Middlebury Teddy; timing is printed only (speed targets live in
+// `hnnstereo bench`, not in unit tests).
 TEST(DetectFeatures, TeddyCountsAndTiming) {
   const std::string path =
       std::string(HNNSTEREO_SHARED_DIR) + "/datasets/middlebury2003_teddy/im2.png";
@@ -308,9 +309,6 @@ TEST(DetectFeatures, TeddyCountsAndTiming) {
     std::cout << FeatureDetectorName(detector) << " on Teddy im2 (cap 5000): detected "
               << report.n_detected << ", kept " << report.points.size() << ", best of 5 " << best_ms
               << " ms\n";
-    if (detector == FeatureDetector::kCanny) {
-      EXPECT_LT(best_ms, 50.0) << "the whole match has 250 ms";
-    }
   }
 }
 

@@ -1,0 +1,156 @@
+// Candidate gating: rows, disparity range, top-K, height range, dense and feature-vs-disparity.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <opencv2/core.hpp>
+#include <random>
+
+#include "calib/calibration.h"
+#include "vision/candidates.h"
+#include "vision/correlation.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+constexpr float kShift = 10.0f;  // true disparity of the synthetic pair
+
+struct Pair {
+  cv::Mat left, right;
+  std::vector<Eigen::Vector2f> left_points, right_points;
+};
+
+// Random texture; the right image is the left shifted by kShift px (a fronto-parallel plane).
+Pair TexturedPair(std::uint64_t seed) {
+  Pair pair;
+  pair.left = cv::Mat(80, 160, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(pair.left, cv::RNG::UNIFORM, 0, 255);
+  pair.right = cv::Mat(80, 160, CV_8UC1, cv::Scalar(0));
+  pair.left(cv::Rect(static_cast<int>(kShift), 0, 160 - static_cast<int>(kShift), 80))
+      .copyTo(pair.right(cv::Rect(0, 0, 160 - static_cast<int>(kShift), 80)));
+  for (int y = 10; y < 70; y += 6) {
+    for (int x = 30; x < 150; x += 7) pair.left_points.emplace_back(static_cast<float>(x), static_cast<float>(y));
+  }
+  for (int y = 10; y < 70; y += 6) {
+    for (int x = 5; x < 150; x += 1) pair.right_points.emplace_back(static_cast<float>(x), static_cast<float>(y));
+  }
+  return pair;
+}
+
+TEST(BuildCandidates, RectifiedGatesByRowAndDisparity) {
+  const Pair pair = TexturedPair(1);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.min_disparity = 2;
+  options.max_disparity = 20;
+  options.top_k = 0;
+  const CandidateReport report = BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options);
+  ASSERT_EQ(report.problem.Check(), "");
+  ASSERT_FALSE(report.problem.candidates.empty());
+  for (const hnn::Candidate& c : report.problem.candidates) {
+    const Eigen::Vector2f& l = pair.left_points[static_cast<std::size_t>(c.left)];
+    EXPECT_LE(std::abs(l.y() - c.right_point.y()), options.max_epipolar_distance_px);
+    const float d = l.x() - c.right_point.x();
+    EXPECT_GE(d, 2.0f);
+    EXPECT_LE(d, 20.0f);
+    EXPECT_FLOAT_EQ(c.epipolar_distance_px, std::abs(l.y() - c.right_point.y()));
+  }
+  // Every left point has all 19 disparities 2..20 of its own row available.
+  EXPECT_EQ(report.problem.candidates.size(), pair.left_points.size() * 19);
+}
+
+TEST(BuildCandidates, TopKKeepsTheBestCorrelatedIncludingTheTrueMatch) {
+  const Pair pair = TexturedPair(2);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.max_disparity = 30;
+  options.top_k = 3;
+  const CandidateReport report = BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options);
+  std::map<int, int> per_left;
+  std::map<int, bool> has_true;
+  for (const hnn::Candidate& c : report.problem.candidates) {
+    ++per_left[c.left];
+    const Eigen::Vector2f& l = pair.left_points[static_cast<std::size_t>(c.left)];
+    if (std::abs(l.x() - c.right_point.x() - kShift) < 0.01f) {
+      has_true[c.left] = true;
+      EXPECT_GT(c.correlation, 0.99f);
+    }
+  }
+  for (const auto& [left, count] : per_left) EXPECT_LE(count, 3);
+  EXPECT_EQ(has_true.size(), pair.left_points.size());
+}
+
+TEST(BuildCandidates, DenseIsAllPairs) {
+  const Pair pair = TexturedPair(3);
+  const ZnccMatcher zncc(pair.left, pair.right, 5);
+  CandidateOptions options;
+  options.rectified = true;
+  options.dense = true;
+  std::vector<Eigen::Vector2f> left(pair.left_points.begin(), pair.left_points.begin() + 12);
+  std::vector<Eigen::Vector2f> right(pair.right_points.begin(), pair.right_points.begin() + 15);
+  const CandidateReport report = BuildCandidates(left, right, zncc, nullptr, options);
+  EXPECT_TRUE(report.problem.dense);
+  EXPECT_EQ(report.problem.candidates.size(), 12u * 15u);
+  EXPECT_EQ(report.problem.Check(), "");
+}
+
+TEST(BuildCandidates, FeatureVersusDisparityNetwork) {
+  const Pair pair = TexturedPair(4);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  options.min_disparity = 4;
+  options.max_disparity = 15;
+  options.top_k = 0;
+  const CandidateReport report = BuildCandidates(pair.left_points, {}, zncc, nullptr, options);
+  EXPECT_EQ(report.problem.n_columns, 12);
+  EXPECT_EQ(report.problem.candidates.size(), pair.left_points.size() * 12);
+  for (const hnn::Candidate& c : report.problem.candidates) {
+    const Eigen::Vector2f& l = pair.left_points[static_cast<std::size_t>(c.left)];
+    EXPECT_FLOAT_EQ(l.x() - c.right_point.x(), static_cast<float>(c.column + 4));
+  }
+}
+
+TEST(BuildCandidates, HeightRangeGatesThroughTriangulation) {
+  const Pair pair = TexturedPair(5);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  // Rectified cameras looking along +Z: Z = f b / d with f = 100 px, b = 50 mm.
+  calib::StereoCalibration calibration;
+  Eigen::Matrix3d K;
+  K << 100, 0, 80, 0, 100, 40, 0, 0, 1;
+  calibration.P1 << K, Eigen::Vector3d::Zero();
+  calibration.P2 << K, K * Eigen::Vector3d(-50, 0, 0);
+  calibration.DeriveFromProjections();
+  CandidateOptions options;
+  options.top_k = 0;
+  options.max_epipolar_distance_px = 0.5;
+  options.z_range_mm = std::make_pair(250.0, 1000.0);  // d in [5, 20]
+  const CandidateReport report =
+      BuildCandidates(pair.left_points, pair.right_points, zncc, &calibration, options);
+  ASSERT_FALSE(report.problem.candidates.empty());
+  for (const hnn::Candidate& c : report.problem.candidates) {
+    const float d = pair.left_points[static_cast<std::size_t>(c.left)].x() - c.right_point.x();
+    EXPECT_GE(d, 5.0f - 1e-3f);
+    EXPECT_LE(d, 20.0f + 1e-3f);
+    EXPECT_LT(c.epipolar_distance_px, 0.5f);
+  }
+}
+
+TEST(BuildCandidates, RefusesBadOptions) {
+  const Pair pair = TexturedPair(6);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;  // not rectified and no calibration
+  EXPECT_THROW(BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options),
+               std::invalid_argument);
+  options.rectified = true;
+  options.min_disparity = 10;
+  options.max_disparity = 5;
+  EXPECT_THROW(BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision
