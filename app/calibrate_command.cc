@@ -15,7 +15,8 @@
 namespace hnnstereo::app {
 namespace {
 
-constexpr const char* kCalibrateHelp = R"(Stereo calibration: writes CAL.yml (OpenCV YAML: P1, P2, F, C1, C2, error figures).
+constexpr const char* kCalibrateHelp =
+    R"(Stereo calibration: writes CAL.yml (OpenCV YAML: P1, P2, F, C1, C2, error figures).
 
 Three ways:
   calibrate --target circles --dir TARGET_DIR --out CAL.yml [--report CALIB.json]
@@ -109,8 +110,9 @@ void RunCalibrate(const CalibrateArguments& args) {
 }  // namespace
 
 void AddCalibrateCommand(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("calibrate", "Stereo calibration (circle target, "
-                                                  "chessboard or known points) -> CAL.yml");
+  CLI::App* cmd = app.add_subcommand("calibrate",
+                                     "Stereo calibration (circle target, "
+                                     "chessboard or known points) -> CAL.yml");
   cmd->footer(kCalibrateHelp);
   auto args = std::make_shared<CalibrateArguments>();
   cmd->add_option("--target", args->target, "circles | chessboard")

@@ -124,10 +124,18 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--device", device,
                   "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
                   "first GPU, else the first device)");
-  cmd->add_option("--objective", objective,
-                  "Compatibility: thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
-                  "geometry-similarity")
+  cmd->add_option("--preset", preset,
+                  "Named settings: hnn-default (geometry x similarity compatibility and a "
+                  "left-right ZNCC check; measured best, docs/accuracy.md) or hnn-thesis (the "
+                  "thesis's eq. 6.7 additive compatibility, no check)")
       ->capture_default_str();
+  objective_option =
+      cmd->add_option("--objective", objective,
+                      "Compatibility (overrides the preset): thesis (eq. 6.6-6.8), printed0, "
+                      "printed1, printed2, geometry-similarity")
+          ->capture_default_str();
+  cmd->add_flag("--no-lr-check", no_left_right_check,
+                "Skip the preset's left-right consistency check");
   cmd->add_option("--support-radius", o.energy.support_radius_px,
                   "Sparse networks: connect neurons whose left features are within this many px")
       ->capture_default_str();
@@ -166,6 +174,13 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
 
 void MatcherFlags::Resolve() {
   auto& o = options;
+  const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
+  if (!chosen) throw std::invalid_argument("unknown --preset '" + preset + "' (hnn-default, hnn-thesis)");
+  if (objective_option == nullptr || objective_option->count() == 0) {
+    objective = std::string(hnn::ObjectiveName(chosen->matcher.energy.objective));
+  }
+  refinement = chosen->refinement;
+  if (no_left_right_check) refinement.left_right_check = false;
   if (auto d = vision::ParseFeatureDetector(features)) {
     o.features.detector = *d;
   } else {

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "host/opencl_runtime.h"
+#include "vision/matcher_presets.h"
 #include "vision/stereo_matcher.h"
 
 namespace hnnstereo::app {
@@ -22,8 +23,12 @@ struct MatcherFlags {
   vision::MatcherOptions options;
   std::string features = "canny";
   std::string engine = "opencl";
-  std::string objective = "thesis";
-  std::string initial_state = "correlation";
+  std::string objective = "geometry-similarity";
+  std::string preset = "hnn-default";
+  bool no_left_right_check = false;
+  vision::RefinementOptions refinement;  ///< from the preset, after Resolve()
+  CLI::Option* objective_option = nullptr;
+  std::string initial_state = "off";
   std::string activation = "continuous";
   std::string decode = "thesis";
   std::string network = "feature";
@@ -32,7 +37,8 @@ struct MatcherFlags {
   std::string device;
   /// Adds the flags to `cmd`.
   void AddTo(CLI::App* cmd);
-  /// Parses the string-valued flags into `options`; throws std::invalid_argument.
+  /// Parses the string-valued flags into `options` and applies the preset (its objective unless
+  /// --objective was given, its refinements unless --no-lr-check); throws std::invalid_argument.
   void Resolve();
 };
 

@@ -9,9 +9,12 @@
 #include "calib/atomic_file.h"
 #include "calib/calibration.h"
 #include "vision/image.h"
+#include "vision/matcher_presets.h"
+#include "vision/lens_distortion.h"
 #include "vision/match_io.h"
 #include "vision/overlay.h"
 #include "vision/stereo_matcher.h"
+#include "vision/uncalibrated.h"
 
 namespace hnnstereo::app {
 namespace {
@@ -38,20 +41,58 @@ void RunMatch(MatchArgs& args) {
   } else if (args.rectified) {
     options.candidates.rectified = true;
   } else {
-    throw std::invalid_argument("give --calib CAL.yml or --rectified");
+    // Neither: estimate F from confident correlation matches, then match with the soft
+    // epipolar term (projective cameras; no heights).
+    const vision::UncalibratedReport estimate = vision::EstimateEpipolarGeometry(left.grey, right.grey);
+    calibration = std::make_unique<calib::StereoCalibration>(estimate.calibration);
+    if (!args.quiet) {
+      std::printf("estimated F from %d putative matches: %d inliers, mean epipolar distance "
+                  "%.2f px (%.0f ms)\n",
+                  estimate.n_putative, estimate.fundamental.num_inliers,
+                  estimate.fundamental.mean_epipolar_distance_px, estimate.time_ms);
+    }
   }
   if (options.candidates.z_range_mm && !calibration) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }
 
+  // A chessboard calibration refers P and F to undistorted pixels: match on undistorted images,
+  // then report the matches in the pixels of the images as given.
+  cv::Mat left_grey = left.grey, right_grey = right.grey;
+  const calib::Intrinsics* lens =
+      calibration && calibration->intrinsics && !calibration->intrinsics->D1.empty()
+          ? &*calibration->intrinsics : nullptr;
+  if (lens) {
+    left_grey = vision::UndistortImage(left.grey, lens->K1, lens->D1);
+    right_grey = vision::UndistortImage(right.grey, lens->K2, lens->D2);
+  }
   std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
-  const vision::MatchReport report =
-      vision::MatchStereo(left.grey, right.grey, calibration.get(), options, runtime.get());
+  vision::MatchReport report =
+      vision::MatchStereo(left_grey, right_grey, calibration.get(), options, runtime.get());
+  vision::RefineMatches(left_grey, right_grey, calibration.get(), options, args.flags.refinement,
+                        &report);
+  if (lens) {
+    std::vector<Eigen::Vector2f> lefts, rights;
+    for (const auto& m : report.matches) {
+      lefts.push_back(m.left);
+      rights.push_back(m.right);
+    }
+    lefts = vision::DistortPoints(lefts, lens->K1, lens->D1);
+    rights = vision::DistortPoints(rights, lens->K2, lens->D2);
+    for (std::size_t t = 0; t < report.matches.size(); ++t) {
+      report.matches[t].left = lefts[t];
+      report.matches[t].right = rights[t];
+    }
+    report.left_features = vision::DistortPoints(report.left_features, lens->K1, lens->D1);
+    report.right_features = vision::DistortPoints(report.right_features, lens->K2, lens->D2);
+  }
 
   // Everything is computed before anything is written; each file is written atomically.
   calib::WriteFileAtomically(args.out, vision::MatchesCsv(report));
   if (!args.report.empty()) {
     nlohmann::json json = vision::MatchReportJson(report, options);
+    json["preset"] = args.flags.preset;
+    json["left_right_check"] = args.flags.refinement.left_right_check;
     json["left"] = args.left;
     json["right"] = args.right;
     calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
@@ -92,8 +133,10 @@ void AddMatchCommand(CLI::App& app) {
       "sizes, iterations, energies, timing_ms).");
   cmd->add_option("--left", args->left, "Left image (8/16-bit, grey or colour)")->required();
   cmd->add_option("--right", args->right, "Right image, same size")->required();
-  auto* calib_opt = cmd->add_option("--calib", args->calib,
-                                    "Calibration: CAL.yml (P1, P2, F) or a Middlebury calib.txt");
+  auto* calib_opt = cmd->add_option(
+      "--calib", args->calib,
+      "Calibration: CAL.yml (P1, P2, F) or a Middlebury calib.txt. Without --calib and "
+      "--rectified, F is estimated from confident correlation matches (8-point + RANSAC)");
   auto* rect_opt = cmd->add_flag("--rectified", args->rectified,
                                  "The pair is rectified: epipolar lines are image rows");
   calib_opt->excludes(rect_opt);

@@ -12,8 +12,13 @@ namespace hnnstereo::calib {
 std::string TemporaryPathFor(const std::string& path) {
   const std::filesystem::path target(path);
   std::filesystem::path temporary = target;
-  temporary.replace_filename("." + target.stem().string() + ".tmp" + std::to_string(::getpid()) +
-                             target.extension().string());
+  // Built with append: GCC 12 reports a false -Wrestrict on "." + std::string temporaries.
+  std::string name(".");
+  name.append(target.stem().string())
+      .append(".tmp")
+      .append(std::to_string(::getpid()))
+      .append(target.extension().string());
+  temporary.replace_filename(name);
   return temporary.string();
 }
 

@@ -15,8 +15,9 @@ namespace hnnstereo::calib {
 namespace {
 
 nlohmann::json StatisticsToJson(const ReprojectionStatistics& s) {
-  return {{"mae_x_px", s.mae_x_px}, {"mae_y_px", s.mae_y_px}, {"rms_x_px", s.rms_x_px},
-          {"rms_y_px", s.rms_y_px}, {"mae_px", s.mae_px},     {"rms_px", s.rms_px},
+  return {{"mae_x_px", s.mae_x_px}, {"mae_y_px", s.mae_y_px},
+          {"rms_x_px", s.rms_x_px}, {"rms_y_px", s.rms_y_px},
+          {"mae_px", s.mae_px},     {"rms_px", s.rms_px},
           {"max_px", s.max_px},     {"num_points", s.residuals_px.size()}};
 }
 
@@ -52,15 +53,15 @@ nlohmann::json ReportToJson(const CalibrationReport& report) {
     c["points"] = nlohmann::json::array();
     for (const CalibrationObservation& o : camera.observations) {
       const Eigen::Vector2d error = o.reprojected_px - o.measured_px;
-      c["points"].push_back({{"view", o.view},
-                             {"label", o.label},
-                             {"world_mm", {o.point3D_in_world.x(), o.point3D_in_world.y(),
-                                           o.point3D_in_world.z()}},
-                             {"measured_px", {o.measured_px.x(), o.measured_px.y()}},
-                             {"reprojected_px", {o.reprojected_px.x(), o.reprojected_px.y()}},
-                             {"error_x_px", error.x()},
-                             {"error_y_px", error.y()},
-                             {"error_px", error.norm()}});
+      c["points"].push_back(
+          {{"view", o.view},
+           {"label", o.label},
+           {"world_mm", {o.point3D_in_world.x(), o.point3D_in_world.y(), o.point3D_in_world.z()}},
+           {"measured_px", {o.measured_px.x(), o.measured_px.y()}},
+           {"reprojected_px", {o.reprojected_px.x(), o.reprojected_px.y()}},
+           {"error_x_px", error.x()},
+           {"error_y_px", error.y()},
+           {"error_px", error.norm()}});
     }
     json["cameras"].push_back(c);
   }
@@ -80,8 +81,8 @@ std::string FormatReportTable(const CalibrationReport& report, bool per_point) {
     char line[256];
     std::snprintf(line, sizeof(line),
                   "%-6s %7zu %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f %7.3f   (%.2f, %.2f, %.2f)\n",
-                  camera.camera.c_str(), s.residuals_px.size(), s.mae_x_px, s.mae_y_px,
-                  s.rms_x_px, s.rms_y_px, s.mae_px, s.rms_px, s.max_px, camera.camera_centre.x(),
+                  camera.camera.c_str(), s.residuals_px.size(), s.mae_x_px, s.mae_y_px, s.rms_x_px,
+                  s.rms_y_px, s.mae_px, s.rms_px, s.max_px, camera.camera_centre.x(),
                   camera.camera_centre.y(), camera.camera_centre.z());
     out << line;
   }
@@ -144,8 +145,8 @@ cv::Mat DrawCalibrationOverlay(const cv::Mat& image,
              cv::Scalar(0, 220, 255), 1, cv::LINE_AA, kShift);
   }
   cv::putText(canvas, "green o: measured  red +: reprojected  yellow: error x20",
-              cv::Point(8, canvas.rows - 8), cv::FONT_HERSHEY_SIMPLEX, 0.4,
-              cv::Scalar(255, 0, 255), 1, cv::LINE_AA);
+              cv::Point(8, canvas.rows - 8), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(255, 0, 255),
+              1, cv::LINE_AA);
   return canvas;
 }
 

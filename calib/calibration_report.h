@@ -20,24 +20,24 @@ struct CalibrationObservation {
   Eigen::Vector3d point3D_in_world = Eigen::Vector3d::Zero();  ///< mm
   Eigen::Vector2d measured_px = Eigen::Vector2d::Zero();       ///< detected / given
   Eigen::Vector2d reprojected_px = Eigen::Vector2d::Zero();    ///< through the final model
-  int view = 0;            ///< height (circles), image pair (chessboard), 0 (known points)
-  std::string label;       ///< e.g. "r0c2"
+  int view = 0;       ///< height (circles), image pair (chessboard), 0 (known points)
+  std::string label;  ///< e.g. "r0c2"
 };
 
 /// The report of one camera.
 struct CameraCalibrationReport {
-  std::string camera;                          ///< "left" or "right"
+  std::string camera;  ///< "left" or "right"
   std::vector<CalibrationObservation> observations;
-  ReprojectionStatistics linear;               ///< linear DLT (circles, known points)
-  ReprojectionStatistics final;                ///< the model written to CAL.yml
+  ReprojectionStatistics linear;                            ///< linear DLT (circles, known points)
+  ReprojectionStatistics final;                             ///< the model written to CAL.yml
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();  ///< world (mm)
-  bool refined = false;                        ///< nonlinear refinement kept
-  cv::Mat overlay;                             ///< detected and reprojected points drawn (BGR)
+  bool refined = false;                                     ///< nonlinear refinement kept
+  cv::Mat overlay;  ///< detected and reprojected points drawn (BGR)
 };
 
 /// The report of a stereo calibration.
 struct CalibrationReport {
-  std::string method;  ///< "circles", "chessboard" or "points"
+  std::string method;                            ///< "circles", "chessboard" or "points"
   std::vector<CameraCalibrationReport> cameras;  ///< left, right
   /// Mean distance (px) of the right measured points to the epipolar lines F x1 of their left
   /// partners (points seen by both cameras).
@@ -45,7 +45,7 @@ struct CalibrationReport {
   int num_epipolar_pairs = 0;
   int num_views = 0;
   double elapsed_ms = 0.0;
-  std::vector<std::string> notes;  ///< e.g. how the circle ordering was decided
+  std::vector<std::string> notes;                   ///< e.g. how the circle ordering was decided
   nlohmann::json extra = nlohmann::json::object();  ///< method-specific figures
 };
 

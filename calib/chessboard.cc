@@ -17,8 +17,8 @@ namespace hnnstereo::calib {
 std::string ChessboardOptions::Check() const {
   std::ostringstream out;
   if (rows < 2 || cols < 2) {
-    out << "chessboard --rows and --cols (inner corners) must be >= 2 (are " << rows << ", "
-        << cols << ")";
+    out << "chessboard --rows and --cols (inner corners) must be >= 2 (are " << rows << ", " << cols
+        << ")";
   } else if (!(square_mm > 0.0) || !std::isfinite(square_mm)) {
     out << "chessboard --square must be > 0 mm (is " << square_mm << ")";
   } else if (left_images.size() != right_images.size()) {
@@ -34,8 +34,7 @@ std::string ChessboardOptions::Check() const {
 }
 
 std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Mat& image, int rows,
-                                                                    int cols,
-                                                                    int subpixel_window) {
+                                                                    int cols, int subpixel_window) {
   cv::Mat grey;
   if (image.channels() == 3) {
     cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
@@ -43,9 +42,9 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Ma
     grey = image;
   }
   std::vector<cv::Point2f> corners;
-  const bool found = cv::findChessboardCorners(
-      grey, cv::Size(cols, rows), corners,
-      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+  const bool found =
+      cv::findChessboardCorners(grey, cv::Size(cols, rows), corners,
+                                cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
   if (!found) return std::nullopt;
   cv::cornerSubPix(grey, corners, cv::Size(subpixel_window, subpixel_window), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 30, 0.01));
@@ -131,8 +130,8 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
       for (size_t i = 0; i < projected.size(); ++i) {
         CalibrationObservation observation;
         observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
-        observation.measured_px = Eigen::Vector2d(corners[camera][view][i].x,
-                                                  corners[camera][view][i].y);
+        observation.measured_px =
+            Eigen::Vector2d(corners[camera][view][i].x, corners[camera][view][i].y);
         observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
         observation.view = static_cast<int>(view);
         observation.label = "r" + std::to_string(static_cast<int>(i) / options.cols) + "c" +
@@ -196,8 +195,9 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
                          {"cols", options.cols},
                          {"square_mm", options.square_mm},
                          {"world_frame", "left camera, mm"}};
-  result.report.notes.push_back("world frame = left camera frame (mm); P and F apply to "
-                                "undistorted pixels (D1, D2 in CAL.yml)");
+  result.report.notes.push_back(
+      "world frame = left camera frame (mm); P and F apply to "
+      "undistorted pixels (D1, D2 in CAL.yml)");
   if (!skipped.empty()) {
     result.report.notes.push_back(std::to_string(skipped.size()) +
                                   " image(s) without a detected board were skipped");

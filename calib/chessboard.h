@@ -18,10 +18,10 @@ namespace hnnstereo::calib {
 
 /// Options of the chessboard calibration.
 struct ChessboardOptions {
-  int rows = 6;              ///< inner corners per column (OpenCV sample board: 6)
-  int cols = 9;              ///< inner corners per row (OpenCV sample board: 9)
-  double square_mm = 25.0;   ///< side of one square (mm)
-  std::vector<std::string> left_images;   ///< one per pair, same order as right_images
+  int rows = 6;                          ///< inner corners per column (OpenCV sample board: 6)
+  int cols = 9;                          ///< inner corners per row (OpenCV sample board: 9)
+  double square_mm = 25.0;               ///< side of one square (mm)
+  std::vector<std::string> left_images;  ///< one per pair, same order as right_images
   std::vector<std::string> right_images;
   int subpixel_window = 11;  ///< cornerSubPix window size (px), as in OpenCV's stereo_calib
   /// Pairs in which the board is found in both images; fewer is an error.

@@ -1,7 +1,7 @@
 #include "calib/circle_calibration.h"
 
-#include <Eigen/Geometry>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -40,8 +40,8 @@ std::string ResolveImage(const cv::FileNode& node, const std::string& key, const
                          const std::string& path, int index) {
   const cv::FileNode value = node[key];
   if (value.empty() || !value.isString()) {
-    throw std::runtime_error(Where(path) + ": height " + std::to_string(index) + " has no '" +
-                             key + "' image name");
+    throw std::runtime_error(Where(path) + ": height " + std::to_string(index) + " has no '" + key +
+                             "' image name");
   }
   const fs::path image = fs::path(static_cast<std::string>(value));
   const fs::path resolved = image.is_absolute() ? image : dir / image;
@@ -176,11 +176,13 @@ void SaveTargetDescription(const TargetDescription& target, const std::string& p
     storage << "pitch_mm" << target.grid.pitch_mm;
     storage << "circle_radius_mm" << target.grid.circle_radius_mm;
     storage << "dark_circles" << static_cast<int>(target.dark_circles);
-    storage << "heights" << "[";
+    storage << "heights"
+            << "[";
     for (const TargetPlacement& placement : target.placements) {
       cv::Mat pose;
       cv::eigen2cv(placement.world_from_target, pose);
-      storage << "{" << "left" << placement.left_image << "right" << placement.right_image
+      storage << "{"
+              << "left" << placement.left_image << "right" << placement.right_image
               << "world_from_target" << pose << "}";
     }
     storage << "]";
@@ -213,7 +215,8 @@ GridRotationChoice ChooseGridRotations(
     const auto& world = points3D_per_view[v];
     const auto& centres = canonical_centres_per_view[v];
     std::vector<Eigen::Vector3d> world_normalised;
-    for (const auto& X : world) world_normalised.push_back((T_world * X.homogeneous()).hnormalized());
+    for (const auto& X : world)
+      world_normalised.push_back((T_world * X.homogeneous()).hnormalized());
     for (size_t r = 0; r < num_rotations; ++r) {
       std::vector<Eigen::Vector2d> image_normalised;
       for (size_t i = 0; i < world.size(); ++i) {
@@ -226,7 +229,8 @@ GridRotationChoice ChooseGridRotations(
 
   std::vector<std::vector<Eigen::Vector4d>> world_normalised(num_views);
   for (size_t v = 0; v < num_views; ++v) {
-    for (const auto& X : points3D_per_view[v]) world_normalised[v].push_back(T_world * X.homogeneous());
+    for (const auto& X : points3D_per_view[v])
+      world_normalised[v].push_back(T_world * X.homogeneous());
   }
   auto summed = [&](const std::vector<int>& combo) {
     Matrix12d sum = Matrix12d::Zero();
@@ -263,7 +267,8 @@ GridRotationChoice ChooseGridRotations(
     for (const auto& X : points) centroid += X / static_cast<double>(points.size());
     Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
     for (const auto& X : points) scatter += (X - centroid) * (X - centroid).transpose();
-    const Eigen::Vector3d spread = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues();
+    const Eigen::Vector3d spread =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues();
     return spread(0) > 1e-6 * spread(2);
   };
   while (num_seed < num_views && num_seed < 7 && !spans_volume(num_seed)) ++num_seed;
@@ -455,8 +460,7 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
   const TargetDescription target = LoadTargetDirectory(target_dir);
   CircleDetectionOptions detection_options = options.detection;
   detection_options.dark_circles = target.dark_circles;
-  const std::vector<std::vector<int>> rotations =
-      GridRotations(target.grid.rows, target.grid.cols);
+  const std::vector<std::vector<int>> rotations = GridRotations(target.grid.rows, target.grid.cols);
   const size_t num_views = target.placements.size();
 
   std::vector<std::vector<Eigen::Vector3d>> world(num_views);
@@ -475,14 +479,14 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
         first_images[camera] = image;
         if (camera == 0) image_width = image.cols, image_height = image.rows;
       } else if (image.size() != first_images[camera].size()) {
-        throw std::runtime_error("image '" + path + "' differs in size from the " +
-                                 names[camera] + " image of height 0");
+        throw std::runtime_error("image '" + path + "' differs in size from the " + names[camera] +
+                                 " image of height 0");
       }
       const CircleGridDetection detection =
           DetectCircleGrid(image, target.grid, detection_options, options.grid);
       if (!detection.found) {
-        throw std::runtime_error("height " + std::to_string(v) + ", " + names[camera] +
-                                 " image '" + path + "': " + detection.message);
+        throw std::runtime_error("height " + std::to_string(v) + ", " + names[camera] + " image '" +
+                                 path + "': " + detection.message);
       }
       centres[camera].push_back(detection.centres_px);
     }
@@ -493,7 +497,8 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
   for (int camera = 0; camera < 2; ++camera) {
     const GridRotationChoice choice = ChooseGridRotations(world, centres[camera], rotations);
     for (size_t v = 0; v < num_views; ++v) {
-      const std::vector<int>& rotation = rotations[static_cast<size_t>(choice.rotation_per_view[v])];
+      const std::vector<int>& rotation =
+          rotations[static_cast<size_t>(choice.rotation_per_view[v])];
       std::vector<Eigen::Vector2d> view_centres(rotation.size());
       for (size_t i = 0; i < rotation.size(); ++i) {
         view_centres[i] = centres[camera][v][static_cast<size_t>(rotation[i])];
@@ -517,14 +522,16 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
     CameraCalibrationReport& camera_report = result.report.cameras[static_cast<size_t>(camera)];
     for (auto& observation : camera_report.observations) {
       const int index = std::stoi(observation.label.substr(1));
-      observation.label = std::string("r").append(std::to_string(index / cols)).append("c").append(std::to_string(index % cols));
+      observation.label = std::string("r")
+                              .append(std::to_string(index / cols))
+                              .append("c")
+                              .append(std::to_string(index % cols));
     }
     camera_report.overlay =
         DrawCalibrationOverlay(first_images[camera], camera_report.observations);
   }
-  result.report.extra["grid"] = {{"rows", target.grid.rows},
-                                 {"cols", target.grid.cols},
-                                 {"pitch_mm", target.grid.pitch_mm}};
+  result.report.extra["grid"] = {
+      {"rows", target.grid.rows}, {"cols", target.grid.cols}, {"pitch_mm", target.grid.pitch_mm}};
   result.report.elapsed_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;

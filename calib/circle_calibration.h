@@ -17,7 +17,7 @@ namespace hnnstereo::calib {
 
 /// One placement of the target, seen by both cameras.
 struct TargetPlacement {
-  std::string left_image;   ///< path (relative paths in target.yml are relative to TARGET_DIR)
+  std::string left_image;  ///< path (relative paths in target.yml are relative to TARGET_DIR)
   std::string right_image;
   Eigen::Matrix4d world_from_target = Eigen::Matrix4d::Identity();  ///< mm
 };
@@ -46,9 +46,9 @@ struct GridRotationChoice {
   /// The world poses could not tell some rotations apart (e.g. the target moved only along the
   /// vertical through one point); the image-direction rule decided.
   bool decided_by_image_rule = false;
-  int num_equivalent = 1;              ///< labelings explaining the data equally well
-  double algebraic_residual = 0.0;     ///< smallest eigenvalue of the normalised DLT system
-  double reprojection_rms_px = 0.0;    ///< RMS of the linear DLT of the chosen labeling (px)
+  int num_equivalent = 1;            ///< labelings explaining the data equally well
+  double algebraic_residual = 0.0;   ///< smallest eigenvalue of the normalised DLT system
+  double reprojection_rms_px = 0.0;  ///< RMS of the linear DLT of the chosen labeling (px)
 };
 
 /// Chooses, per view v, the grid rotation r_v (applied as centres'[i] = centres[rotations[r][i]])

@@ -96,7 +96,8 @@ Eigen::Vector2d WeightedCentre(const cv::Mat& grey, const std::vector<cv::Point>
     for (int x = 0; x < patch.cols; ++x) {
       if (!inside[x]) continue;
       const double level = pixel[x];
-      double w = dark_circles ? (outside_grey - level) / contrast : (level - outside_grey) / contrast;
+      double w =
+          dark_circles ? (outside_grey - level) / contrast : (level - outside_grey) / contrast;
       w = std::clamp(w, 0.0, 1.0);
       sum_w += w;
       sum_x += w * (x + roi.x);
@@ -158,8 +159,8 @@ std::string CircleGridOptions::Check() const {
   if (max_candidates < 4) {
     out << "CircleGridOptions.max_candidates must be >= 4 (is " << max_candidates << ")";
   } else if (!(max_prediction_error > 0.0 && max_prediction_error < 0.5)) {
-    out << "CircleGridOptions.max_prediction_error must be in (0, 0.5) (is "
-        << max_prediction_error << ")";
+    out << "CircleGridOptions.max_prediction_error must be in (0, 0.5) (is " << max_prediction_error
+        << ")";
   } else if (!(max_area_ratio >= 1.0)) {
     out << "CircleGridOptions.max_area_ratio must be >= 1 (is " << max_area_ratio << ")";
   }
@@ -284,7 +285,8 @@ std::vector<std::vector<int>> GridRotations(int rows, int cols) {
   } else {
     std::vector<int> half_turn(n);
     for (int r = 0; r < rows; ++r) {
-      for (int c = 0; c < cols; ++c) half_turn[r * cols + c] = (rows - 1 - r) * cols + (cols - 1 - c);
+      for (int c = 0; c < cols; ++c)
+        half_turn[r * cols + c] = (rows - 1 - r) * cols + (cols - 1 - c);
     }
     rotations.push_back(half_turn);
   }
@@ -305,7 +307,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
   const int rows = grid.rows, cols = grid.cols, n_grid = grid.size();
   if (static_cast<int>(blobs.size()) < n_grid) {
     detection.message = "found " + std::to_string(blobs.size()) + " circular blobs, need " +
-                        std::to_string(n_grid);
+                        std::to_string(n_grid) + " for a " + std::to_string(rows) + " x " +
+                        std::to_string(cols) + " grid";
     return detection;
   }
   // The most circular blobs first.
@@ -352,7 +355,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
           });
           bool convex = true;
           for (int k = 0; k < 4 && convex; ++k) {
-            const Eigen::Vector2d e1 = blobs[quad[(k + 1) % 4]].centre_px - blobs[quad[k]].centre_px;
+            const Eigen::Vector2d e1 =
+                blobs[quad[(k + 1) % 4]].centre_px - blobs[quad[k]].centre_px;
             const Eigen::Vector2d e2 =
                 blobs[quad[(k + 2) % 4]].centre_px - blobs[quad[(k + 1) % 4]].centre_px;
             convex = Cross(e1, e2) > 0.0;
@@ -367,8 +371,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
             bool complete = true;
             std::fill(assignment.begin(), assignment.end(), -1);
             for (int k = 0; k < 4; ++k) {
-              const int index =
-                  static_cast<int>(grid_corners[k].y()) * cols + static_cast<int>(grid_corners[k].x());
+              const int index = static_cast<int>(grid_corners[k].y()) * cols +
+                                static_cast<int>(grid_corners[k].x());
               assignment[index] = quad[(start + k) % 4];
             }
             for (int i = 0; i < n_grid && complete; ++i) {
@@ -387,8 +391,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
                   nearest = candidates[k];
                 }
               }
-              if (nearest < 0 || std::find(assignment.begin(), assignment.end(), nearest) !=
-                                     assignment.end()) {
+              if (nearest < 0 ||
+                  std::find(assignment.begin(), assignment.end(), nearest) != assignment.end()) {
                 complete = false;
                 break;
               }
@@ -449,7 +453,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
   std::vector<int> labeling = best_assignment;
   if (Cross(d_col, d_row) > 0.0) {
     for (int r = 0; r < rows; ++r) {
-      for (int c = 0; c < cols; ++c) labeling[r * cols + c] = best_assignment[r * cols + (cols - 1 - c)];
+      for (int c = 0; c < cols; ++c)
+        labeling[r * cols + c] = best_assignment[r * cols + (cols - 1 - c)];
     }
   }
   // Rule 2: the rotation whose +col direction is closest to image +u.
@@ -460,7 +465,8 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
     for (int i = 0; i < n_grid; ++i) rotated[i] = labeling[rotation[i]];
     Eigen::Vector2d col_direction = Eigen::Vector2d::Zero();
     for (int r = 0; r < rows; ++r) {
-      col_direction += blobs[rotated[r * cols + cols - 1]].centre_px - blobs[rotated[r * cols]].centre_px;
+      col_direction +=
+          blobs[rotated[r * cols + cols - 1]].centre_px - blobs[rotated[r * cols]].centre_px;
     }
     const double alignment = col_direction.x() / std::max(col_direction.norm(), 1e-12);
     if (alignment > best_alignment + 1e-9) {

@@ -62,8 +62,8 @@ struct CircleDetectionOptions {
 /// One circular blob found in an image.
 struct CircleBlob {
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();
-  double area_px = 0.0;          ///< area of the thresholded blob (px^2)
-  double radial_deviation = 0.0; ///< the circularity measure (see max_radial_deviation)
+  double area_px = 0.0;           ///< area of the thresholded blob (px^2)
+  double radial_deviation = 0.0;  ///< the circularity measure (see max_radial_deviation)
 };
 
 /// Threshold, border following (cv::findContours), circularity check, sub-pixel centres.
@@ -90,8 +90,8 @@ struct CircleGridOptions {
 /// The grid found in one image.
 struct CircleGridDetection {
   bool found = false;
-  std::string message;                    ///< why not, when not found
-  std::vector<CircleBlob> blobs;          ///< all circular blobs of the image
+  std::string message;            ///< why not, when not found
+  std::vector<CircleBlob> blobs;  ///< all circular blobs of the image
   /// Canonical labeling: blob index per grid point (row-major). See FindCircleGrid.
   std::vector<int> grid_blob_index;
   /// Circle centres in the canonical labeling (row-major), px.

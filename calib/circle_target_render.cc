@@ -147,8 +147,8 @@ RenderedCircleTarget RenderCircleTarget(const ProjectionMatrix& P,
         outer_radius + 2 + (options.image_width - 2 * outer_radius - 4) * uniform(generator),
         outer_radius + 2 + (options.image_height - 2 * outer_radius - 4) * uniform(generator));
     const double distance_to_plate = cv::pointPolygonTest(
-        plate_polygon_px, cv::Point2f(static_cast<float>(centre.x()),
-                                      static_cast<float>(centre.y())), true);
+        plate_polygon_px,
+        cv::Point2f(static_cast<float>(centre.x()), static_cast<float>(centre.y())), true);
     if (distance_to_plate > -(outer_radius + 8.0)) continue;  // inside or touching the plate
     bool overlaps = false;
     for (const auto& [other, other_radius] : placed) {
@@ -174,11 +174,10 @@ RenderedCircleTarget RenderCircleTarget(const ProjectionMatrix& P,
                   cv::Size(radius_big(mark_radius), radius_big(mark_radius * 0.4)), angle_deg, 0,
                   360, cv::Scalar(options.circle_grey), cv::FILLED, cv::LINE_AA, kShiftBits);
     } else if (kind == 2) {  // square mark
-      const cv::RotatedRect square(cv::Point2f(static_cast<float>(centre.x()),
-                                               static_cast<float>(centre.y())),
-                                   cv::Size2f(static_cast<float>(1.4 * mark_radius),
-                                              static_cast<float>(1.4 * mark_radius)),
-                                   static_cast<float>(angle_deg));
+      const cv::RotatedRect square(
+          cv::Point2f(static_cast<float>(centre.x()), static_cast<float>(centre.y())),
+          cv::Size2f(static_cast<float>(1.4 * mark_radius), static_cast<float>(1.4 * mark_radius)),
+          static_cast<float>(angle_deg));
       cv::Point2f vertices[4];
       square.points(vertices);
       std::vector<cv::Point> polygon;
@@ -189,8 +188,7 @@ RenderedCircleTarget RenderCircleTarget(const ProjectionMatrix& P,
   }
 
   cv::Mat image;
-  cv::resize(big, image, cv::Size(options.image_width, options.image_height), 0, 0,
-             cv::INTER_AREA);
+  cv::resize(big, image, cv::Size(options.image_width, options.image_height), 0, 0, cv::INTER_AREA);
   cv::Mat image_float;
   image.convertTo(image_float, CV_32F);
   if (options.blur_sigma_px > 0.0) {

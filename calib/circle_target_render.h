@@ -17,32 +17,32 @@ namespace hnnstereo::calib {
 
 /// How the target image is rendered.
 struct CircleTargetRenderOptions {
-  int image_width = 640;             ///< px
-  int image_height = 480;            ///< px
-  double plate_margin_mm = 20.0;     ///< plate border beyond the outer circle centres (mm)
-  double table_grey = 70.0;          ///< grey level of the background (table)
-  double plate_grey = 215.0;         ///< grey level of the plate
-  double circle_grey = 35.0;         ///< grey level of the circles
-  double blur_sigma_px = 0.8;        ///< Gaussian blur (optics), px
-  double noise_sigma_grey = 2.0;     ///< additive Gaussian sensor noise, grey levels
+  int image_width = 640;          ///< px
+  int image_height = 480;         ///< px
+  double plate_margin_mm = 20.0;  ///< plate border beyond the outer circle centres (mm)
+  double table_grey = 70.0;       ///< grey level of the background (table)
+  double plate_grey = 215.0;      ///< grey level of the plate
+  double circle_grey = 35.0;      ///< grey level of the circles
+  double blur_sigma_px = 0.8;     ///< Gaussian blur (optics), px
+  double noise_sigma_grey = 2.0;  ///< additive Gaussian sensor noise, grey levels
   /// Random shift (Gaussian, per axis, px) applied to each circle's image: localisation noise
   /// whose size is known exactly (the "0.2 px noise" of the acceptance test).
   double centre_jitter_px = 0.0;
   /// Distracting blobs placed off the plate: bright reflections, some with dark circular,
   /// elliptic or square marks inside (circular ones pass the circularity check on purpose).
   int num_distractors = 0;
-  int supersampling = 4;             ///< anti-aliasing factor
-  std::uint64_t random_seed = 1;     ///< seeds noise, jitter and distractors
+  int supersampling = 4;          ///< anti-aliasing factor
+  std::uint64_t random_seed = 1;  ///< seeds noise, jitter and distractors
 
   std::string Check() const;
 };
 
 /// The rendered image and its truth.
 struct RenderedCircleTarget {
-  cv::Mat image;                              ///< 8-bit grey
-  std::vector<Eigen::Vector2d> centres_px;    ///< true circle centres (row-major), incl. jitter
+  cv::Mat image;                            ///< 8-bit grey
+  std::vector<Eigen::Vector2d> centres_px;  ///< true circle centres (row-major), incl. jitter
   std::vector<Eigen::Vector2d> distractor_centres_px;
-  bool fully_visible = false;                 ///< the whole plate lies inside the image
+  bool fully_visible = false;  ///< the whole plate lies inside the image
 };
 
 /// Renders `grid` at `world_from_target` through `P` (x ~ P X, world in mm).

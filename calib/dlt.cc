@@ -1,8 +1,8 @@
 #include "calib/dlt.h"
 
-#include <Eigen/Geometry>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <cmath>
 #include <sstream>
@@ -238,8 +238,8 @@ DltReport EstimateProjectionDlt(const std::vector<Eigen::Vector3d>& points3D_in_
     for (const auto& X : points3D_in_world) centroid += X;
     centroid /= static_cast<double>(n);
     Eigen::MatrixXd centred(n, 3);
-    for (size_t i = 0; i < n; ++i) centred.row(static_cast<Eigen::Index>(i)) =
-        (points3D_in_world[i] - centroid).transpose();
+    for (size_t i = 0; i < n; ++i)
+      centred.row(static_cast<Eigen::Index>(i)) = (points3D_in_world[i] - centroid).transpose();
     const Eigen::Vector3d spread = Eigen::JacobiSVD<Eigen::MatrixXd>(centred).singularValues();
     if (!(spread(2) > options.min_non_planarity * spread(0))) {
       std::ostringstream out;

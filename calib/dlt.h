@@ -47,12 +47,12 @@ struct ReprojectionStatistics {
 
 /// What EstimateProjectionDlt did and how well.
 struct DltReport {
-  ProjectionMatrix P = ProjectionMatrix::Zero();   ///< x ~ P X, scaled so that P(2,3) = 1
+  ProjectionMatrix P = ProjectionMatrix::Zero();            ///< x ~ P X, scaled so that P(2,3) = 1
   Eigen::Vector3d camera_centre = Eigen::Vector3d::Zero();  ///< C with P C = 0 (world units)
   int num_points = 0;
-  ReprojectionStatistics linear;   ///< errors of the linear (normalised) DLT
-  ReprojectionStatistics final;    ///< errors of the returned P (after refinement if enabled)
-  bool refined = false;            ///< true when the nonlinear refinement ran and was kept
+  ReprojectionStatistics linear;  ///< errors of the linear (normalised) DLT
+  ReprojectionStatistics final;   ///< errors of the returned P (after refinement if enabled)
+  bool refined = false;           ///< true when the nonlinear refinement ran and was kept
   int refinement_iterations = 0;
 };
 

@@ -41,9 +41,9 @@ Eigen::Matrix3d FundamentalFromProjections(const Eigen::Matrix<double, 3, 4>& P1
   // P^T (P P^T)^-1 squares the condition number: with pixel/mm entries (1e3 vs 1e6) it lost
   // about 1e-4 px of epipolar accuracy.
   Eigen::JacobiSVD<Eigen::Matrix<double, 3, 4>> thin(P1, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Matrix<double, 4, 3> P1_pinv =
-      thin.matrixV().leftCols<3>() * thin.singularValues().cwiseInverse().asDiagonal() *
-      thin.matrixU().transpose();
+  const Eigen::Matrix<double, 4, 3> P1_pinv = thin.matrixV().leftCols<3>() *
+                                              thin.singularValues().cwiseInverse().asDiagonal() *
+                                              thin.matrixU().transpose();
   Eigen::Matrix3d F = CrossProductMatrix(epipole2) * P2 * P1_pinv;
   const double norm = F.norm();
   if (norm > 0.0) F /= norm;

@@ -87,8 +87,7 @@ double LeftDistance(const Eigen::Matrix3d& F, const Eigen::Vector2d& left,
 }
 
 int Classify(const Eigen::Matrix3d& F, const std::vector<Eigen::Vector2d>& left,
-             const std::vector<Eigen::Vector2d>& right, double threshold,
-             std::vector<bool>* mask) {
+             const std::vector<Eigen::Vector2d>& right, double threshold, std::vector<bool>* mask) {
   int count = 0;
   mask->assign(left.size(), false);
   for (size_t i = 0; i < left.size(); ++i) {
@@ -160,8 +159,8 @@ FundamentalReport EstimateFundamentalRansac(const std::vector<Eigen::Vector2d>& 
     const std::vector<size_t> sample(indices.begin(), indices.begin() + 8);
     const Eigen::Matrix3d F = EightPoint(left_points, right_points, sample);
     if (!F.allFinite()) continue;
-    const int count = Classify(F, left_points, right_points, options.max_epipolar_distance_px,
-                               &mask);
+    const int count =
+        Classify(F, left_points, right_points, options.max_epipolar_distance_px, &mask);
     if (count > best_count) {
       best_count = count;
       best_F = F;
@@ -169,8 +168,7 @@ FundamentalReport EstimateFundamentalRansac(const std::vector<Eigen::Vector2d>& 
       const double inlier_ratio = static_cast<double>(count) / static_cast<double>(n);
       const double all_inlier = std::pow(inlier_ratio, 8.0);
       needed_iterations =
-          all_inlier >= 1.0 ? 0.0
-                            : std::log(1.0 - options.confidence) / std::log(1.0 - all_inlier);
+          all_inlier >= 1.0 ? 0.0 : std::log(1.0 - options.confidence) / std::log(1.0 - all_inlier);
     }
   }
   report.num_iterations = iteration;

@@ -39,7 +39,7 @@ struct FundamentalReport {
   Eigen::Matrix3d F = Eigen::Matrix3d::Zero();  ///< rank 2, unit Frobenius norm, x2^T F x1 = 0
   std::vector<bool> inlier_mask;                ///< one flag per correspondence
   int num_inliers = 0;
-  int num_iterations = 0;                       ///< RANSAC samples drawn
+  int num_iterations = 0;  ///< RANSAC samples drawn
   /// Mean over inliers of the distance of the right point to the epipolar line F x1 (px), the
   /// tau of thesis eq. 6.14.
   double mean_epipolar_distance_px = 0.0;

@@ -28,8 +28,7 @@ KnownPoints ParseKnownPoints(const std::string& text, const std::string& source)
       const double value = std::strtod(token.c_str(), &end);
       if (end == token.c_str() || *end != '\0') {
         throw std::runtime_error("points file '" + source + "' line " +
-                                 std::to_string(line_number) + ": '" + token +
-                                 "' is not a number");
+                                 std::to_string(line_number) + ": '" + token + "' is not a number");
       }
       if (!std::isfinite(value)) {
         throw std::runtime_error("points file '" + source + "' line " +
@@ -40,8 +39,8 @@ KnownPoints ParseKnownPoints(const std::string& text, const std::string& source)
     }
     if (values.empty()) continue;
     if (values.size() != 5) {
-      throw std::runtime_error("points file '" + source + "' line " +
-                               std::to_string(line_number) + ": expected 5 numbers 'X Y Z u v', got " +
+      throw std::runtime_error("points file '" + source + "' line " + std::to_string(line_number) +
+                               ": expected 5 numbers 'X Y Z u v', got " +
                                std::to_string(values.size()));
     }
     points.points3D_in_world.emplace_back(values[0], values[1], values[2]);
@@ -67,9 +66,9 @@ CalibrationResult CalibrateFromKnownPoints(const std::string& left_points_path,
   const auto start = std::chrono::steady_clock::now();
   const KnownPoints left = ReadKnownPoints(left_points_path);
   const KnownPoints right = ReadKnownPoints(right_points_path);
-  CalibrationResult result = CalibrateFromCorrespondences(
-      "points", {left.points3D_in_world}, {left.image_points}, {right.points3D_in_world},
-      {right.image_points}, options);
+  CalibrationResult result =
+      CalibrateFromCorrespondences("points", {left.points3D_in_world}, {left.image_points},
+                                   {right.points3D_in_world}, {right.image_points}, options);
   for (CameraCalibrationReport& camera : result.report.cameras) {
     camera.overlay = DrawCalibrationOverlay(cv::Mat(), camera.observations);
   }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -71,10 +72,13 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   problem.dense = options.dense;
   report.right_points = right_points;
 
+  // The epipolar line of the current left feature, normalised so that a x + b y + c is the
+  // signed distance (eq. 6.14); computed once per left feature.
+  Eigen::Vector3d line = Eigen::Vector3d::Zero();
   auto tau_of = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) -> float {
     if (options.rectified) return std::abs(l.y() - r.y());
-    return static_cast<float>(
-        calib::EpipolarDistancePx(calibration->F, l.cast<double>(), r.cast<double>()));
+    if (line.isZero()) return std::numeric_limits<float>::infinity();
+    return static_cast<float>(std::abs(line.x() * r.x() + line.y() * r.y() + line.z()));
   };
   auto height_ok = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) {
     if (!options.z_range_mm || calibration == nullptr) return true;
@@ -116,6 +120,7 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
     const int row_reach = static_cast<int>(std::ceil(options.max_epipolar_distance_px));
     for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
       const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
+      if (!options.rectified) line = calib::EpipolarLineInRight(calibration->F, l.cast<double>());
       scored.clear();
       auto consider = [&](int k) {
         const Eigen::Vector2f& r = right_points[static_cast<std::size_t>(k)];

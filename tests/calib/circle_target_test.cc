@@ -60,7 +60,8 @@ TEST(CircleTarget, DetectsSubPixelCentres) {
   double worst = 0.0;
   for (const Eigen::Vector2d& truth : rendered.centres_px) {
     double nearest = 1e9;
-    for (const CircleBlob& blob : blobs) nearest = std::min(nearest, (blob.centre_px - truth).norm());
+    for (const CircleBlob& blob : blobs)
+      nearest = std::min(nearest, (blob.centre_px - truth).norm());
     worst = std::max(worst, nearest);
   }
   EXPECT_LT(worst, 0.1) << "sub-pixel centre error";
@@ -84,8 +85,8 @@ TEST(CircleTarget, OrdersGridUpToRotationDespiteDistractors) {
     EXPECT_GT(detection.blobs.size(), 9u) << "some distractors should pass the circularity check";
     bool some_rotation_matches = false;
     for (const auto& rotation : GridRotations(3, 3)) {
-      some_rotation_matches |= MaxDistance(Rotated(detection.centres_px, rotation),
-                                           rendered.centres_px) < 0.5;
+      some_rotation_matches |=
+          MaxDistance(Rotated(detection.centres_px, rotation), rendered.centres_px) < 0.5;
     }
     EXPECT_TRUE(some_rotation_matches) << "yaw " << yaw;
   }
@@ -164,7 +165,7 @@ CircleTargetRenderOptions AcceptanceRenderOptions() {
   render.centre_jitter_px = 0.2;  // "0.2 px noise": per-axis localisation noise of each circle
   render.noise_sigma_grey = 2.0;
   render.blur_sigma_px = 0.8;
-  render.num_distractors = 6;     // reflections, some with circular marks
+  render.num_distractors = 6;  // reflections, some with circular marks
   return render;
 }
 
@@ -196,8 +197,9 @@ TEST(CircleTargetAcceptance, HundredRandomPosesOrderedAndCalibrated) {
 }
 
 // The thesis's procedure, repeated: 100 independent calibrations, each from 3 heights only
-// (0, 100, 200 mm; 27 points per camera). Ordering must be right every time; the camera centre from 27 points
-// at 0.2 px is only good to a few mm (the geometry, not the detector: see docs/calibration.md).
+// (0, 100, 200 mm; 27 points per camera). Ordering must be right every time; the camera centre from
+// 27 points at 0.2 px is only good to a few mm (the geometry, not the detector: see
+// docs/calibration.md).
 TEST(CircleTargetAcceptance, HundredThreeHeightCalibrations) {
   const testing::StereoRig rig = testing::ThesisRig();
   const CircleGridGeometry grid;
@@ -208,9 +210,8 @@ TEST(CircleTargetAcceptance, HundredThreeHeightCalibrations) {
   for (int trial = 0; trial < kTrials; ++trial) {
     const std::uint64_t seed = kSeed + 1 + static_cast<std::uint64_t>(trial);
     SCOPED_TRACE("trial " + std::to_string(trial) + ", seed " + std::to_string(seed));
-    const auto placements =
-        testing::RenderRandomPlacements(rig, grid, 3, seed, AcceptanceRenderOptions(), true,
-                                        40.0, 100.0);
+    const auto placements = testing::RenderRandomPlacements(
+        rig, grid, 3, seed, AcceptanceRenderOptions(), true, 40.0, 100.0);
     ASSERT_EQ(placements.size(), 3u);
     const OrderingOutcome outcome = DetectOrderCalibrate(placements, grid);
     correctly_ordered += outcome.views_ordered == 3 ? 1 : 0;
@@ -256,8 +257,8 @@ TEST(CircleTargetOrdering, VerticalMovesOnlyUseTheImageRule) {
   EXPECT_TRUE(choice.decided_by_image_rule);
   EXPECT_EQ(choice.num_equivalent, 4);
   for (size_t v = 0; v < world.size(); ++v) {
-    EXPECT_LT(MaxDistance(Rotated(canonical[v], rotations[static_cast<size_t>(
-                                                    choice.rotation_per_view[v])]),
+    EXPECT_LT(MaxDistance(Rotated(canonical[v],
+                                  rotations[static_cast<size_t>(choice.rotation_per_view[v])]),
                           truth[v]),
               0.5);
   }

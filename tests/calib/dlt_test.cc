@@ -22,8 +22,7 @@ void MakeCorrespondences(const ProjectionMatrix& P, int n, double noise_px, std:
   std::uniform_real_distribution<double> uniform(-60.0, 60.0);
   std::normal_distribution<double> noise(0.0, noise_px);
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d X(100.0 + uniform(generator), 385.0 + uniform(generator),
-                            50.0 * (i % 3));
+    const Eigen::Vector3d X(100.0 + uniform(generator), 385.0 + uniform(generator), 50.0 * (i % 3));
     world->push_back(X);
     image->push_back(Project(P, X) + Eigen::Vector2d(noise(generator), noise(generator)));
   }
@@ -64,10 +63,10 @@ TEST(Dlt, SmallReprojectionErrorWithNoiseAndRefinementHelps) {
   // MAE <= RMS always; per-point figures consistent with per-axis ones.
   EXPECT_LE(report.final.mae_x_px, report.final.rms_x_px);
   EXPECT_LE(report.final.mae_px, report.final.rms_px);
-  EXPECT_NEAR(report.final.rms_px * report.final.rms_px,
-              report.final.rms_x_px * report.final.rms_x_px +
-                  report.final.rms_y_px * report.final.rms_y_px,
-              1e-9);
+  EXPECT_NEAR(
+      report.final.rms_px * report.final.rms_px,
+      report.final.rms_x_px * report.final.rms_x_px + report.final.rms_y_px * report.final.rms_y_px,
+      1e-9);
 }
 
 TEST(Dlt, CameraCentreIsNullVector) {

@@ -30,13 +30,15 @@ Matches MakeMatches(const testing::StereoRig& rig, int n, double noise_px, doubl
   std::normal_distribution<double> noise(0.0, noise_px);
   Matches matches;
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d X = rig.work_centre + Eigen::Vector3d(100 * uniform(generator),
-                                                                80 * uniform(generator),
-                                                                75 + 75 * uniform(generator));
+    const Eigen::Vector3d X =
+        rig.work_centre + Eigen::Vector3d(100 * uniform(generator), 80 * uniform(generator),
+                                          75 + 75 * uniform(generator));
     Eigen::Vector2d left = Project(rig.P1, X) + Eigen::Vector2d(noise(generator), noise(generator));
-    Eigen::Vector2d right = Project(rig.P2, X) + Eigen::Vector2d(noise(generator), noise(generator));
+    Eigen::Vector2d right =
+        Project(rig.P2, X) + Eigen::Vector2d(noise(generator), noise(generator));
     const bool outlier = (uniform(generator) + 1.0) / 2.0 < outlier_ratio;
-    if (outlier) right = Eigen::Vector2d(320 + 300 * uniform(generator), 240 + 220 * uniform(generator));
+    if (outlier)
+      right = Eigen::Vector2d(320 + 300 * uniform(generator), 240 + 220 * uniform(generator));
     matches.left.push_back(left);
     matches.right.push_back(right);
     matches.is_outlier.push_back(outlier);
@@ -49,8 +51,7 @@ TEST(FundamentalFromProjections, EpipolarConstraintHolds) {
   const Eigen::Matrix3d F = FundamentalFromProjections(rig.P1, rig.P2);
   const Matches matches = MakeMatches(rig, 50, 0.0, 0.0, kSeed);
   for (size_t i = 0; i < matches.left.size(); ++i) {
-    const double algebraic =
-        matches.right[i].homogeneous().dot(F * matches.left[i].homogeneous());
+    const double algebraic = matches.right[i].homogeneous().dot(F * matches.left[i].homogeneous());
     EXPECT_NEAR(algebraic, 0.0, 1e-9);
     EXPECT_LT(EpipolarDistancePx(F, matches.left[i], matches.right[i]), 1e-6);
   }

@@ -60,14 +60,13 @@ inline std::vector<SyntheticPlacement> RenderRandomPlacements(
       const double yaw = random_yaw ? 180.0 + 180.0 * uniform(generator) : 0.0;
       // Target centre near the work centre; origin = circle (0, 0).
       const Eigen::Vector3d centre =
-          rig.work_centre + Eigen::Vector3d(max_offset_mm * uniform(generator),
-                                            max_offset_mm * uniform(generator),
-                                            (h % levels) * height_step_mm + 5.0 * uniform(generator));
+          rig.work_centre +
+          Eigen::Vector3d(max_offset_mm * uniform(generator), max_offset_mm * uniform(generator),
+                          (h % levels) * height_step_mm + 5.0 * uniform(generator));
       const Eigen::Vector3d half_extent(0.5 * (grid.cols - 1) * grid.pitch_mm,
                                         0.5 * (grid.rows - 1) * grid.pitch_mm, 0.0);
       const Eigen::Matrix4d at_centre = WorldFromTargetFlat(centre, yaw);
-      const Eigen::Vector3d origin =
-          (at_centre * (-half_extent).homogeneous()).hnormalized();
+      const Eigen::Vector3d origin = (at_centre * (-half_extent).homogeneous()).hnormalized();
       SyntheticPlacement placement;
       placement.world_from_target = WorldFromTargetFlat(origin, yaw);
       // Cheap visibility check of the plate corners before rendering.
@@ -78,8 +77,7 @@ inline std::vector<SyntheticPlacement> RenderRandomPlacements(
           const Eigen::Vector3d in_target(
               (corner % 2 == 0) ? -margin : (grid.cols - 1) * grid.pitch_mm + margin,
               (corner / 2 == 0) ? -margin : (grid.rows - 1) * grid.pitch_mm + margin, 0.0);
-          const Eigen::Vector3d x =
-              *P * (placement.world_from_target * in_target.homogeneous());
+          const Eigen::Vector3d x = *P * (placement.world_from_target * in_target.homogeneous());
           const Eigen::Vector2d pixel = x.hnormalized();
           visible = visible && x.z() > 0 && pixel.x() > 1 && pixel.y() > 1 &&
                     pixel.x() < render.image_width - 2 && pixel.y() < render.image_height - 2;

@@ -1,0 +1,110 @@
+// The eval command's contract: EVAL.json, Markdown, plot; a clean failure on a folder without a
+// Middlebury set.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kTeddy = std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy";
+
+struct Result {
+  int exit_code;
+  std::string output;
+};
+
+Result RunCli(const std::string& arguments) {
+  const fs::path log = fs::temp_directory_path() / ("hnnstereo_eval_cli_" + std::to_string(::getpid()) + ".log");
+  const std::string command = std::string(HNNSTEREO_BINARY) + " " + arguments + " > " + log.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  fs::remove(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+class EvalCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("hnnstereo_eval_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
+  const Result result =
+      RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") + " --markdown " +
+             Path("eval.md") + " --engine cpu --max-features 1500 --max-steps 150");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("| middlebury2003_teddy | hnn-default |"), std::string::npos)
+      << result.output;
+  std::ifstream file(Path("eval.json"));
+  const nlohmann::json json = nlohmann::json::parse(file);
+  ASSERT_EQ(json["pairs"].size(), 1u);
+  const nlohmann::json& pair = json["pairs"][0];
+  EXPECT_EQ(pair["layout"], "middlebury2003");
+  std::vector<std::string> methods;
+  for (const auto& method : pair["methods"]) methods.push_back(method["method"]);
+  EXPECT_EQ(methods, (std::vector<std::string>{"hnn-default", "hnn-thesis", "wta-zncc", "opencv-bm",
+                                                "opencv-sgbm"}));
+  const nlohmann::json& hnn = pair["methods"][0];
+  for (const char* key : {"precision_1px", "precision_2px", "occluded_precision_1px", "density",
+                          "n_matches", "n_occluded", "time_ms"}) {
+    EXPECT_TRUE(hnn.contains(key)) << key;
+  }
+  EXPECT_GT(hnn["n_matches"].get<int>(), 300);
+  EXPECT_GT(hnn["precision_1px"].get<double>(), 0.5);
+  EXPECT_LE(hnn["precision_1px"].get<double>(), hnn["precision_2px"].get<double>());
+  // Baselines at the same pixels.
+  EXPECT_EQ(pair["methods"][2]["n_matches"], hnn["n_matches"]);
+  EXPECT_EQ(json["overall"].size(), 5u);
+  const cv::Mat plot = cv::imread(Path("eval.png"));
+  EXPECT_FALSE(plot.empty());
+  std::ifstream markdown(Path("eval.md"));
+  std::string header;
+  std::getline(markdown, header);
+  EXPECT_NE(header.find("precision 1 px"), std::string::npos);
+}
+
+TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {
+  fs::create_directories(Path("input_empty"));
+  const Result result = RunCli("eval --dataset " + Path("input_empty") + " --out " + Path("eval.json"));
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.output.find("hnnstereo: error: no Middlebury set"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(Path("eval.json")));
+}
+
+TEST_F(EvalCli, UnknownPresetFailsCleanly) {
+  const Result result = RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") +
+                               " --presets nonsense");
+  EXPECT_NE(result.exit_code, 0);
+  EXPECT_NE(result.output.find("unknown preset"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(Path("eval.json")));
+}
+
+TEST_F(EvalCli, HelpNamesTheLayoutsAndOptions) {
+  const Result result = RunCli("eval --help");
+  EXPECT_EQ(result.exit_code, 0);
+  for (const char* word : {"--dataset", "--out", "--markdown", "--plot", "--presets", "--warped",
+                           "2014", "PFM"}) {
+    EXPECT_NE(result.output.find(word), std::string::npos) << word;
+  }
+}
+
+}  // namespace

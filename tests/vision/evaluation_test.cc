@@ -1,0 +1,260 @@
+// Scoring, baselines and refinements on seeded synthetic pairs with known disparity.
+#include "vision/evaluation.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "vision/eval_plot.h"
+#include "vision/matcher_presets.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// A textured left image and its right view at a constant disparity (x_r = x_l - d), blurred so
+// that ZNCC varies smoothly (sub-pixel fits need that).
+struct SyntheticPair {
+  cv::Mat left, right, disparity, nonoccluded;
+};
+
+SyntheticPair MakePair(double disparity, unsigned seed, int width = 160, int height = 120) {
+  std::mt19937 random(seed);
+  cv::Mat noise(height, width + 64, CV_8U);
+  cv::theRNG().state = seed;
+  cv::randu(noise, 0, 256);
+  cv::Mat texture;
+  cv::GaussianBlur(noise, texture, cv::Size(0, 0), 1.2);
+  cv::normalize(texture, texture, 0, 255, cv::NORM_MINMAX);
+  SyntheticPair pair;
+  pair.left = texture(cv::Rect(32, 0, width, height)).clone();
+  const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, -disparity - 32, 0, 1, 0);
+  cv::warpAffine(texture, pair.right, shift, cv::Size(width, height), cv::INTER_CUBIC);
+  pair.disparity = cv::Mat(height, width, CV_32F, cv::Scalar(static_cast<float>(disparity)));
+  pair.nonoccluded = cv::Mat(height, width, CV_8U, cv::Scalar(255));
+  return pair;
+}
+
+TruthView ViewOf(const SyntheticPair& pair) {
+  TruthView truth;
+  truth.disparity = &pair.disparity;
+  truth.nonoccluded = &pair.nonoccluded;
+  return truth;
+}
+
+TEST(ScoreMatches, CountsEachCaseOnce) {
+  cv::Mat disparity(10, 20, CV_32F, cv::Scalar(4.0f));
+  disparity.at<float>(0, 0) = kNaN;  // no truth
+  cv::Mat visible(10, 20, CV_8U, cv::Scalar(255));
+  visible.at<std::uint8_t>(1, 10) = 0;  // occluded
+  TruthView truth{&disparity, &visible};
+  MethodMatches m;
+  m.method = "test";
+  m.left = {{0, 0}, {10, 2}, {10, 3}, {10, 4}, {10, 5}, {10, 1}};
+  m.right = {{0, 0}, {6, 2}, {7.5f, 3}, {3, 4}, {kNaN, kNaN}, {6, 1}};
+  const MethodScore s = ScoreMatches(m, truth, 10);
+  EXPECT_EQ(s.n_matches, 6);
+  EXPECT_EQ(s.n_with_truth, 5);
+  EXPECT_EQ(s.n_occluded, 1);
+  EXPECT_EQ(s.n_nonoccluded, 4);
+  EXPECT_EQ(s.correct_1px, 1);  // (6,2) exact; (7.5,3) 1.5 px; (3,4) 3 px; invalid
+  EXPECT_EQ(s.correct_2px, 2);
+  EXPECT_EQ(s.n_invalid, 1);
+  EXPECT_EQ(s.occluded_correct_1px, 1);
+  EXPECT_DOUBLE_EQ(s.precision_1px(), 0.25);
+  EXPECT_DOUBLE_EQ(s.density(), 0.5);
+  EXPECT_NEAR(s.mean_error_px(), (0.0 + 1.5 + 3.0) / 3.0, 1e-9);
+  m.right.pop_back();
+  EXPECT_THROW(ScoreMatches(m, truth, 10), std::invalid_argument);
+}
+
+TEST(ScoreMatches, MapsWarpedRightPointsBackWithH) {
+  cv::Mat disparity(50, 50, CV_32F, cv::Scalar(3.0f));
+  cv::Mat visible(50, 50, CV_8U, cv::Scalar(255));
+  TruthView truth{&disparity, &visible};
+  truth.right_from_rectified = EvaluationOptions::DefaultWarp();
+  MethodMatches m;
+  for (int i = 10; i < 40; i += 5) {
+    const Eigen::Vector2f left(static_cast<float>(i), static_cast<float>(i / 2));
+    const Eigen::Vector3d warped =
+        truth.right_from_rectified * Eigen::Vector3d(left.x() - 3.0, left.y(), 1.0);
+    m.left.push_back(left);
+    m.right.push_back(warped.hnormalized().cast<float>());
+  }
+  const MethodScore s = ScoreMatches(m, truth, 6);
+  EXPECT_EQ(s.correct_1px, 6);
+  EXPECT_LT(s.mean_error_px(), 1e-3);
+}
+
+TEST(PrecisionDensityCurve, MostConfidentFirstAndEndsAtTheWhole) {
+  cv::Mat disparity(10, 100, CV_32F, cv::Scalar(2.0f));
+  cv::Mat visible(10, 100, CV_8U, cv::Scalar(255));
+  TruthView truth{&disparity, &visible};
+  MethodMatches m;
+  for (int i = 0; i < 40; ++i) {
+    const bool good = i < 20;
+    m.left.emplace_back(static_cast<float>(10 + i), 5.0f);
+    m.right.emplace_back(static_cast<float>(10 + i - (good ? 2 : 9)), 5.0f);
+    m.confidence.push_back(good ? 1.0f - 0.01f * static_cast<float>(i) : 0.1f);
+  }
+  const auto curve = PrecisionDensityCurve(m, truth, 80, 4);
+  ASSERT_GE(curve.size(), 4u);
+  EXPECT_DOUBLE_EQ(curve.front().precision_1px, 1.0);
+  EXPECT_DOUBLE_EQ(curve.back().precision_1px, 0.5);
+  EXPECT_DOUBLE_EQ(curve.back().density, 0.5);
+  for (std::size_t i = 1; i < curve.size(); ++i) EXPECT_GE(curve[i].density, curve[i - 1].density);
+}
+
+std::vector<Eigen::Vector2f> GridPoints(int width, int height, int margin, int step) {
+  std::vector<Eigen::Vector2f> points;
+  for (int y = margin; y < height - margin; y += step)
+    for (int x = margin + 24; x < width - margin; x += step)
+      points.emplace_back(static_cast<float>(x), static_cast<float>(y));
+  return points;
+}
+
+TEST(Baselines, WinnerTakeAllZnccFindsAConstantShift) {
+  const SyntheticPair pair = MakePair(7.0, 11);
+  const auto points = GridPoints(pair.left.cols, pair.left.rows, 8, 7);
+  const MethodMatches wta = WinnerTakeAllZncc(pair.left, pair.right, points, 7, 0, 16);
+  const MethodScore s = ScoreMatches(wta, ViewOf(pair), static_cast<int>(points.size()));
+  EXPECT_EQ(s.n_nonoccluded, static_cast<int>(points.size()));
+  EXPECT_GT(s.precision_1px(), 0.97);
+}
+
+TEST(Baselines, StereoSgbmAndBmFindAConstantShiftAndInvalidCountsWrong) {
+  const SyntheticPair pair = MakePair(5.0, 12);
+  const auto points = GridPoints(pair.left.cols, pair.left.rows, 8, 7);
+  for (bool semi_global : {false, true}) {
+    const MethodMatches dense = OpenCvBlockMatching(pair.left, pair.right, points, semi_global, 0, 16);
+    const MethodScore s = ScoreMatches(dense, ViewOf(pair), static_cast<int>(points.size()));
+    EXPECT_GT(s.precision_1px(), 0.9) << dense.method;
+    EXPECT_EQ(s.n_nonoccluded - s.correct_2px >= s.n_invalid, true) << dense.method;
+  }
+  // Pixels left of numDisparities have no output: NaN, scored as wrong.
+  const MethodMatches edge =
+      OpenCvBlockMatching(pair.left, pair.right, {{2.0f, 60.0f}}, true, 0, 16);
+  EXPECT_FALSE(edge.right.front().allFinite());
+  EXPECT_EQ(ScoreMatches(edge, ViewOf(pair), 1).n_invalid, 1);
+}
+
+TEST(Refinement, SubpixelParabolaReducesTheErrorOfAFractionalShift) {
+  const SyntheticPair pair = MakePair(6.4, 13);
+  MatchReport report;
+  for (const Eigen::Vector2f& p : GridPoints(pair.left.cols, pair.left.rows, 10, 6)) {
+    report.matches.push_back({p, Eigen::Vector2f(p.x() - 6.0f, p.y()), 1.0f, 0, 0});
+  }
+  auto mean_error = [&](const MatchReport& r) {
+    double sum = 0.0;
+    for (const StereoMatch& m : r.matches) sum += std::abs(m.right.x() - (m.left.x() - 6.4));
+    return sum / static_cast<double>(r.matches.size());
+  };
+  const double before = mean_error(report);
+  MatcherOptions matcher;
+  matcher.candidates.rectified = true;
+  RefinementOptions refinement;
+  refinement.subpixel = true;
+  RefineMatches(pair.left, pair.right, nullptr, matcher, refinement, &report);
+  EXPECT_NEAR(before, 0.4, 1e-4);
+  EXPECT_LT(mean_error(report), 0.2);
+}
+
+TEST(Refinement, LeftRightCheckDropsInconsistentMatches) {
+  const SyntheticPair pair = MakePair(5.0, 14);
+  MatchReport report;
+  const auto points = GridPoints(pair.left.cols, pair.left.rows, 10, 9);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const float wrong = (i % 2 == 0) ? 0.0f : 9.0f;  // every other match is 9 px off
+    report.matches.push_back({points[i], Eigen::Vector2f(points[i].x() - 5.0f - wrong, points[i].y()),
+                              1.0f, 0, 0});
+  }
+  MatcherOptions matcher;
+  matcher.candidates.rectified = true;
+  matcher.candidates.max_disparity = 20;
+  RefinementOptions refinement;
+  refinement.left_right_check = true;
+  RefineMatches(pair.left, pair.right, nullptr, matcher, refinement, &report);
+  const std::size_t expected_kept = (points.size() + 1) / 2;
+  EXPECT_NEAR(static_cast<double>(report.matches.size()), static_cast<double>(expected_kept),
+              0.1 * static_cast<double>(expected_kept));
+  for (const StereoMatch& m : report.matches) EXPECT_NEAR(m.left.x() - m.right.x(), 5.0f, 1.0f);
+  refinement.left_right_tolerance_px = -1.0;
+  EXPECT_THROW(RefineMatches(pair.left, pair.right, nullptr, matcher, refinement, &report),
+               std::invalid_argument);
+}
+
+TEST(Presets, ThesisIsTheInClassDefaultsAndBothAreValid) {
+  const MatcherPreset thesis = ThesisPreset();
+  EXPECT_EQ(thesis.matcher.energy.objective, hnn::Objective::kThesis);
+  EXPECT_EQ(thesis.matcher.decode.method, hnn::DecodeMethod::kThesisPruning);
+  EXPECT_FALSE(thesis.refinement.left_right_check);
+  EXPECT_EQ(thesis.matcher.energy.W1, hnn::EnergyOptions{}.W1);
+  EXPECT_TRUE(thesis.Check().empty());
+  EXPECT_TRUE(AccurateDefaultPreset().Check().empty());
+  EXPECT_TRUE(FindPreset("hnn-default").has_value());
+  EXPECT_FALSE(FindPreset("nope").has_value());
+}
+
+TEST(EvaluatePair, SyntheticPairEndToEndOnTheCpuEngine) {
+  const SyntheticPair synthetic = MakePair(6.0, 15, 200, 120);
+  MiddleburyPair pair;
+  pair.name = "synthetic";
+  pair.left_grey = synthetic.left;
+  pair.right_grey = synthetic.right;
+  pair.disparity = synthetic.disparity;
+  pair.nonoccluded = synthetic.nonoccluded;
+  pair.max_disparity = 16;
+  EvaluationOptions options;
+  for (MatcherPreset& preset : options.presets) {
+    preset.matcher.engine = hnn::EngineKind::kCpu;
+    preset.matcher.features.max_features = 600;
+    preset.matcher.features.canny_low = 20;
+    preset.matcher.features.canny_high = 60;
+  }
+  options.warped = true;
+  const PairEvaluation evaluation = EvaluatePair(pair, options, nullptr);
+  ASSERT_EQ(evaluation.scores.size(), 2u + 3u + 2u + 1u) << ::testing::PrintToString(evaluation.notices);
+  EXPECT_GT(evaluation.n_edges_with_truth, 600);
+  const MethodScore& hnn = evaluation.scores[0];
+  EXPECT_GT(hnn.n_matches, 200);
+  EXPECT_GT(hnn.precision_1px(), 0.9);
+  // The baselines are read at exactly the HNN's pixels.
+  EXPECT_EQ(evaluation.scores[2].n_matches, hnn.n_matches);
+  EXPECT_EQ(evaluation.scores[4].method, "opencv-sgbm");
+  // The warped run matches from the calibration alone and is scored back through H.
+  const MethodScore& warped = evaluation.scores[5];
+  EXPECT_EQ(warped.method, "hnn-default (warped)");
+  EXPECT_GT(warped.n_matches, 100);
+  EXPECT_GT(warped.precision_1px(), 0.8);
+
+  EvaluationReport report;
+  report.pairs = {evaluation, evaluation};
+  const nlohmann::json json = EvaluationJson(report);
+  EXPECT_EQ(json["pairs"].size(), 2u);
+  EXPECT_NE(EvaluationMarkdown(report).find("| synthetic | hnn-default |"), std::string::npos);
+  const cv::Mat plot = DrawPrecisionDensityPlot(report);
+  EXPECT_EQ(plot.type(), CV_8UC3);
+  EXPECT_GT(plot.cols, 400);
+}
+
+TEST(EvaluationOptions, RejectsBadSettings) {
+  EvaluationOptions options;
+  EXPECT_TRUE(options.Check().empty());
+  options.wta_zncc_window = 4;
+  EXPECT_FALSE(options.Check().empty());
+  options = {};
+  options.presets.clear();
+  EXPECT_FALSE(options.Check().empty());
+  options = {};
+  options.warp.setZero();
+  EXPECT_FALSE(options.Check().empty());
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

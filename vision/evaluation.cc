@@ -1,0 +1,553 @@
+#include "vision/evaluation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "vision/correlation.h"
+#include "vision/features.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MillisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// The ground truth at a left point: nullopt when unknown or outside the image.
+std::optional<std::pair<float, bool>> TruthAt(const TruthView& truth, const Eigen::Vector2f& left) {
+  const int x = static_cast<int>(std::lround(left.x()));
+  const int y = static_cast<int>(std::lround(left.y()));
+  if (x < 0 || y < 0 || x >= truth.disparity->cols || y >= truth.disparity->rows) return std::nullopt;
+  const float d = truth.disparity->at<float>(y, x);
+  if (!std::isfinite(d)) return std::nullopt;
+  return std::make_pair(d, truth.nonoccluded->at<std::uint8_t>(y, x) != 0);
+}
+
+// Endpoint error of one match in the rectified frame; +inf for an invalid output.
+double MatchError(const Eigen::Matrix3d& rectified_from_right,
+                  const Eigen::Vector2f& left, const Eigen::Vector2f& right, float disparity) {
+  if (!right.allFinite()) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d mapped = rectified_from_right * Eigen::Vector3d(right.x(), right.y(), 1.0);
+  if (!(std::abs(mapped.z()) > 1e-12)) return std::numeric_limits<double>::infinity();
+  const Eigen::Vector2d right_rectified = mapped.hnormalized();
+  const Eigen::Vector2d expected(static_cast<double>(left.x()) - disparity, left.y());
+  return (right_rectified - expected).norm();
+}
+
+MethodMatches FromReport(const std::string& method, const MatchReport& report) {
+  MethodMatches matches;
+  matches.method = method;
+  for (const StereoMatch& m : report.matches) {
+    matches.left.push_back(m.left);
+    matches.right.push_back(m.right);
+    matches.confidence.push_back(m.activation);
+  }
+  matches.time_ms = report.timing_ms.total;
+  return matches;
+}
+
+// A rectified calibration for sets that ship none (f = width, baseline 100 mm, same K twice):
+// it reproduces the rectified geometry, x_r = x_l - d with d = f b / Z.
+calib::StereoCalibration SyntheticRectifiedCalibration(int width, int height) {
+  Eigen::Matrix3d K;
+  K << width, 0, 0.5 * (width - 1), 0, width, 0.5 * (height - 1), 0, 0, 1;
+  calib::StereoCalibration calibration;
+  calibration.P1.leftCols<3>() = K;
+  calibration.P1.col(3).setZero();
+  calibration.P2.leftCols<3>() = K;
+  calibration.P2.col(3) = K * Eigen::Vector3d(-100.0, 0.0, 0.0);
+  calibration.image_width = width;
+  calibration.image_height = height;
+  calibration.rectified = true;
+  calibration.DeriveFromProjections();
+  return calibration;
+}
+
+MethodScore ScoreAndCurve(const MethodMatches& matches, const TruthView& truth, int n_edges_with_truth,
+                          PairEvaluation* evaluation) {
+  MethodScore score = ScoreMatches(matches, truth, n_edges_with_truth);
+  evaluation->curves.emplace_back(matches.method,
+                                  PrecisionDensityCurve(matches, truth, n_edges_with_truth));
+  return score;
+}
+
+// Everything of the matcher options that changes the network's result.
+std::string MatcherKey(const MatcherOptions& o) {
+  const hnn::EnergyOptions& e = o.energy;
+  const hnn::DynamicsOptions& d = o.dynamics;
+  std::ostringstream key;
+  key << static_cast<int>(o.features.detector) << ',' << o.features.canny_low << ','
+      << o.features.canny_high << ',' << o.features.canny_aperture << ',' << o.features.max_features
+      << ',' << o.features.border_px << ',' << o.features.susan_brightness_threshold << ','
+      << o.features.moravec_window << ',' << o.features.moravec_threshold << ','
+      << o.features.sobel_threshold << '|' << o.candidates.rectified << ','
+      << o.candidates.max_epipolar_distance_px << ',' << o.candidates.min_disparity << ','
+      << o.candidates.max_disparity << ',' << o.candidates.top_k << ',' << o.candidates.min_correlation
+      << ',' << o.candidates.dense << ',' << static_cast<int>(o.candidates.kind) << '|' << o.zncc_window
+      << '|' << e.A << ',' << e.B << ',' << e.C << ',' << e.D << ',' << e.W1 << ',' << e.W2 << ','
+      << e.T << ',' << e.lambda << ',' << e.theta << ',' << static_cast<int>(e.objective) << ','
+      << static_cast<int>(e.compatibility) << ',' << e.support_radius_px << ','
+      << e.distance_attenuation << ',' << e.attenuation_centre_px << ',' << e.attenuation_slope
+      << ',' << e.weight_offset << '|' << static_cast<int>(d.activation) << ',' << d.alpha << ','
+      << static_cast<int>(d.initial_state) << ',' << d.initial_value << ',' << d.initial_noise << ','
+      << d.seed << ',' << d.time_step << ',' << d.tau << ',' << d.max_steps << ','
+      << d.energy_interval << ',' << d.energy_tolerance << ',' << d.stable_checks << ','
+      << d.max_updates << ',' << d.stable_updates << ',' << d.update_tolerance << '|'
+      << static_cast<int>(o.decode.method) << ',' << o.decode.threshold << '|'
+      << static_cast<int>(o.engine) << ',' << o.memory_budget_bytes;
+  return key.str();
+}
+
+std::string Percent(double share) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f", 100.0 * share);
+  return text;
+}
+
+}  // namespace
+
+void MethodScore::Add(const MethodScore& other) {
+  n_matches += other.n_matches;
+  n_with_truth += other.n_with_truth;
+  n_nonoccluded += other.n_nonoccluded;
+  n_occluded += other.n_occluded;
+  n_invalid += other.n_invalid;
+  correct_1px += other.correct_1px;
+  correct_2px += other.correct_2px;
+  occluded_correct_1px += other.occluded_correct_1px;
+  n_edges_with_truth += other.n_edges_with_truth;
+  sum_error_px += other.sum_error_px;
+  n_error += other.n_error;
+  time_ms += other.time_ms;
+}
+
+MethodScore ScoreMatches(const MethodMatches& matches, const TruthView& truth,
+                         int n_edges_with_truth) {
+  if (truth.disparity == nullptr || truth.nonoccluded == nullptr) {
+    throw std::invalid_argument("ScoreMatches: the truth view has no disparity or mask");
+  }
+  if (matches.left.size() != matches.right.size()) {
+    throw std::invalid_argument("ScoreMatches: " + std::to_string(matches.left.size()) +
+                                " left and " + std::to_string(matches.right.size()) + " right points");
+  }
+  const Eigen::Matrix3d rectified_from_right = truth.right_from_rectified.inverse();
+  MethodScore score;
+  score.method = matches.method;
+  score.n_matches = static_cast<int>(matches.left.size());
+  score.n_edges_with_truth = n_edges_with_truth;
+  score.time_ms = matches.time_ms;
+  for (std::size_t i = 0; i < matches.left.size(); ++i) {
+    const auto known = TruthAt(truth, matches.left[i]);
+    if (!known) continue;
+    ++score.n_with_truth;
+    const double error = MatchError(rectified_from_right, matches.left[i], matches.right[i],
+                                    known->first);
+    if (!std::isfinite(error)) ++score.n_invalid;
+    if (known->second) {
+      ++score.n_nonoccluded;
+      if (error <= 1.0) ++score.correct_1px;
+      if (error <= 2.0) ++score.correct_2px;
+      if (std::isfinite(error)) score.sum_error_px += error, ++score.n_error;
+    } else {
+      ++score.n_occluded;
+      if (error <= 1.0) ++score.occluded_correct_1px;
+    }
+  }
+  return score;
+}
+
+std::vector<CurvePoint> PrecisionDensityCurve(const MethodMatches& matches, const TruthView& truth,
+                                              int n_edges_with_truth, int steps) {
+  std::vector<CurvePoint> curve;
+  if (matches.left.empty() || n_edges_with_truth <= 0 || steps <= 0) return curve;
+  std::vector<std::size_t> order(matches.left.size());
+  std::iota(order.begin(), order.end(), 0);
+  const bool ranked = matches.confidence.size() == matches.left.size();
+  if (ranked) {
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return matches.confidence[a] > matches.confidence[b];
+    });
+  }
+  const Eigen::Matrix3d rectified_from_right = truth.right_from_rectified.inverse();
+  int with_truth = 0, nonoccluded = 0, correct = 0;
+  const std::size_t n = order.size();
+  std::size_t next = ranked ? std::max<std::size_t>(1, n / static_cast<std::size_t>(steps)) : n;
+  for (std::size_t rank = 0; rank < n; ++rank) {
+    const std::size_t i = order[rank];
+    if (const auto known = TruthAt(truth, matches.left[i])) {
+      ++with_truth;
+      if (known->second) {
+        ++nonoccluded;
+        if (MatchError(rectified_from_right, matches.left[i], matches.right[i], known->first) <= 1.0) {
+          ++correct;
+        }
+      }
+    }
+    if (rank + 1 == next || rank + 1 == n) {
+      if (nonoccluded > 0) {
+        curve.push_back({double(with_truth) / n_edges_with_truth, double(correct) / nonoccluded});
+      }
+      next = std::min(n, next + std::max<std::size_t>(1, n / static_cast<std::size_t>(steps)));
+    }
+  }
+  return curve;
+}
+
+MethodMatches WinnerTakeAllZncc(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                const std::vector<Eigen::Vector2f>& left_points, int window,
+                                int min_disparity, int max_disparity) {
+  const auto start = Clock::now();
+  MethodMatches result;
+  result.method = "wta-zncc";
+  const ZnccMatcher zncc(left_grey, right_grey, window);
+  for (const Eigen::Vector2f& point : left_points) {
+    const Eigen::Vector2f left(std::round(point.x()), std::round(point.y()));
+    float best = -std::numeric_limits<float>::infinity();
+    Eigen::Vector2f best_right(kNaN, kNaN);
+    for (int d = min_disparity; d <= max_disparity; ++d) {
+      const Eigen::Vector2f right(left.x() - static_cast<float>(d), left.y());
+      if (right.x() < 0.0f) break;
+      const float score = zncc(left, right);
+      if (score > best) best = score, best_right = right;
+    }
+    result.left.push_back(point);
+    result.right.push_back(best_right);
+    result.confidence.push_back(std::isfinite(best) ? best : -2.0f);
+  }
+  result.time_ms = MillisecondsSince(start);
+  return result;
+}
+
+MethodMatches WinnerTakeAllZnccAlongRay(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                        const calib::StereoCalibration& calibration,
+                                        const std::vector<Eigen::Vector2f>& left_points, int window,
+                                        double min_depth, double max_depth) {
+  const auto start = Clock::now();
+  MethodMatches result;
+  result.method = "wta-zncc";
+  const ZnccMatcher zncc(left_grey, right_grey, window);
+  const Eigen::Matrix3d M1 = calibration.P1.leftCols<3>();
+  const Eigen::Matrix3d M1_inverse = M1.inverse();
+  const Eigen::Vector3d C1 = calibration.C1;
+  for (const Eigen::Vector2f& point : left_points) {
+    const Eigen::Vector2f left(std::round(point.x()), std::round(point.y()));
+    // Points of the left pixel's ray, projected into the right image (one per right pixel).
+    const Eigen::Vector3d direction = M1_inverse * Eigen::Vector3d(left.x(), left.y(), 1.0);
+    auto project = [&](double depth) {
+      const Eigen::Vector3d world = C1 + depth * direction / direction.z();
+      return Eigen::Vector2d((calibration.P2 * world.homogeneous()).hnormalized());
+    };
+    const Eigen::Vector2d near = project(min_depth), far = project(max_depth);
+    const int samples = std::max(2, static_cast<int>(std::ceil((near - far).norm())) + 1);
+    float best = -std::numeric_limits<float>::infinity();
+    Eigen::Vector2f best_right(kNaN, kNaN);
+    for (int s = 0; s < samples; ++s) {
+      const Eigen::Vector2d right = far + (near - far) * (double(s) / (samples - 1));
+      const Eigen::Vector2f pixel(static_cast<float>(std::round(right.x())),
+                                  static_cast<float>(std::round(right.y())));
+      if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() > static_cast<float>(right_grey.cols - 1) ||
+          pixel.y() > static_cast<float>(right_grey.rows - 1)) {
+        continue;
+      }
+      const float score = zncc(left, pixel);
+      if (score > best) best = score, best_right = pixel;
+    }
+    result.left.push_back(point);
+    result.right.push_back(best_right);
+    result.confidence.push_back(std::isfinite(best) ? best : -2.0f);
+  }
+  result.time_ms = MillisecondsSince(start);
+  return result;
+}
+
+MethodMatches OpenCvBlockMatching(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                  const std::vector<Eigen::Vector2f>& left_points, bool semi_global,
+                                  int min_disparity, int num_disparities) {
+  const auto start = Clock::now();
+  num_disparities = std::max(16, 16 * ((num_disparities + 15) / 16));
+  cv::Mat disparity_fixed;  // CV_16S, 16 x disparity; below min_disparity * 16 = invalid
+  if (semi_global) {
+    // Hirschmueller, "Stereo processing by semiglobal matching and mutual information", PAMI 2008.
+    // OpenCV's recommended smoothness penalties for a 5x5 block on one channel; full 8 paths.
+    const int block = 5;
+    auto sgbm = cv::StereoSGBM::create(min_disparity, num_disparities, block, 8 * block * block,
+                                       32 * block * block, 1, 63, 10, 100, 2,
+                                       cv::StereoSGBM::MODE_HH);
+    sgbm->compute(left_grey, right_grey, disparity_fixed);
+  } else {
+    auto bm = cv::StereoBM::create(num_disparities, 15);
+    bm->setMinDisparity(min_disparity);
+    bm->compute(left_grey, right_grey, disparity_fixed);
+  }
+  MethodMatches result;
+  result.method = semi_global ? "opencv-sgbm" : "opencv-bm";
+  for (const Eigen::Vector2f& point : left_points) {
+    const int x = static_cast<int>(std::lround(point.x()));
+    const int y = static_cast<int>(std::lround(point.y()));
+    Eigen::Vector2f right(kNaN, kNaN);
+    if (x >= 0 && y >= 0 && x < disparity_fixed.cols && y < disparity_fixed.rows) {
+      const short fixed = disparity_fixed.at<short>(y, x);
+      if (fixed >= min_disparity * 16) right = Eigen::Vector2f(static_cast<float>(x) - fixed / 16.0f, static_cast<float>(y));
+    }
+    result.left.push_back(point);
+    result.right.push_back(right);
+  }
+  result.time_ms = MillisecondsSince(start);
+  return result;
+}
+
+Eigen::Matrix3d EvaluationOptions::DefaultWarp() {
+  // A 3 degree rotation about the image centre region, 2 % shear and a 6 px vertical shift:
+  // rows are no longer epipolar lines.
+  const double angle = 3.0 * 3.14159265358979323846 / 180.0;
+  Eigen::Matrix3d H;
+  H << std::cos(angle), -std::sin(angle) + 0.02, 12.0, std::sin(angle), std::cos(angle), -6.0, 0.0,
+      0.0, 1.0;
+  return H;
+}
+
+std::string EvaluationOptions::Check() const {
+  if (presets.empty()) return "evaluation needs at least one matcher preset";
+  for (const MatcherPreset& preset : presets) {
+    if (auto error = preset.Check(); !error.empty()) return preset.name + ": " + error;
+  }
+  if (wta_zncc_window < 3 || wta_zncc_window > 15 || wta_zncc_window % 2 == 0) {
+    return "wta_zncc_window must be odd, 3..15 (got " + std::to_string(wta_zncc_window) + ")";
+  }
+  if (!warp.allFinite() || std::abs(warp.determinant()) < 1e-9) return "the warp homography is singular";
+  return {};
+}
+
+PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions& options,
+                            ocl::Runtime* runtime) {
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  PairEvaluation evaluation;
+  evaluation.name = pair.name;
+  evaluation.layout = std::string(MiddleburyLayoutName(pair.layout));
+  evaluation.occlusion_source = pair.occlusion_source;
+  evaluation.width = pair.left_grey.cols;
+  evaluation.height = pair.left_grey.rows;
+  evaluation.min_disparity = pair.min_disparity;
+  evaluation.max_disparity = pair.max_disparity;
+
+  // Density's denominator: every Canny edge pixel of the left image (no cap) with ground truth.
+  FeatureOptions edge_options = options.presets.front().matcher.features;
+  edge_options.max_features = 0;
+  const FeatureReport edges = DetectFeatures(pair.left_grey, edge_options);
+  evaluation.n_edges = static_cast<int>(edges.points.size());
+  TruthView truth;
+  truth.disparity = &pair.disparity;
+  truth.nonoccluded = &pair.nonoccluded;
+  for (const Eigen::Vector2f& p : edges.points) {
+    if (TruthAt(truth, p)) ++evaluation.n_edges_with_truth;
+  }
+  const int n_edges = evaluation.n_edges_with_truth;
+  const int d_min = static_cast<int>(pair.min_disparity);
+  const int d_max = static_cast<int>(pair.max_disparity);
+
+  std::vector<Eigen::Vector2f> default_pixels;
+  // Presets that differ only in their refinements share one network run.
+  std::vector<std::pair<std::string, MatchReport>> networks;
+  for (std::size_t p = 0; p < options.presets.size(); ++p) {
+    MatcherPreset preset = options.presets[p];
+    preset.matcher.candidates.rectified = true;
+    preset.matcher.candidates.min_disparity = pair.min_disparity;
+    preset.matcher.candidates.max_disparity = pair.max_disparity;
+    MethodMatches matches;
+    matches.method = preset.name;
+    try {
+      const std::string key = MatcherKey(preset.matcher);
+      auto cached = std::find_if(networks.begin(), networks.end(),
+                                 [&](const auto& entry) { return entry.first == key; });
+      if (cached == networks.end()) {
+        networks.emplace_back(key, MatchStereo(pair.left_grey, pair.right_grey, nullptr,
+                                               preset.matcher, runtime));
+        cached = networks.end() - 1;
+      }
+      MatchReport report = cached->second;
+      const auto refine_start = Clock::now();
+      RefineMatches(pair.left_grey, pair.right_grey, nullptr, preset.matcher, preset.refinement, &report);
+      report.timing_ms.total += MillisecondsSince(refine_start);
+      if (!report.engine_notice.empty()) evaluation.notices.push_back(report.engine_notice);
+      matches = FromReport(preset.name, report);
+    } catch (const std::exception& error) {
+      evaluation.notices.push_back(preset.name + ": " + error.what());
+    }
+    if (p == 0) default_pixels = matches.left;
+    evaluation.scores.push_back(ScoreAndCurve(matches, truth, n_edges, &evaluation));
+  }
+
+  if (options.baselines) {
+    evaluation.scores.push_back(ScoreAndCurve(
+        WinnerTakeAllZncc(pair.left_grey, pair.right_grey, default_pixels, options.wta_zncc_window,
+                          d_min, d_max),
+        truth, n_edges, &evaluation));
+    evaluation.scores.push_back(ScoreAndCurve(
+        OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, false, d_min, d_max - d_min),
+        truth, n_edges, &evaluation));
+    evaluation.scores.push_back(ScoreAndCurve(
+        OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, true, d_min, d_max - d_min),
+        truth, n_edges, &evaluation));
+    // Curves only: winner-take-all ZNCC over every edge pixel, ranked by its score, to compare
+    // precision at equal density rather than at the same pixels.
+    MethodMatches all_edges = WinnerTakeAllZncc(pair.left_grey, pair.right_grey, edges.points,
+                                                options.wta_zncc_window, d_min, d_max);
+    all_edges.method = "wta-zncc (all edges)";
+    evaluation.curves.emplace_back(all_edges.method, PrecisionDensityCurve(all_edges, truth, n_edges));
+  }
+
+  if (options.warped) {
+    // Unrectified version: the right image warped by H, P2 replaced by H P2; the matcher sees
+    // only the calibration (epipolar gating from F, depth range from the disparity range).
+    cv::Mat H_cv(3, 3, CV_64F);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) H_cv.at<double>(r, c) = options.warp(r, c);
+    cv::Mat right_warped;
+    cv::warpPerspective(pair.right_grey, right_warped, H_cv, pair.right_grey.size(), cv::INTER_LINEAR,
+                        cv::BORDER_CONSTANT, cv::Scalar(0));
+    calib::StereoCalibration calibration =
+        SyntheticRectifiedCalibration(pair.left_grey.cols, pair.left_grey.rows);
+    calibration.P2 = options.warp * calibration.P2;
+    calibration.rectified = false;
+    calibration.DeriveFromProjections();
+    const double focal_baseline = calibration.P1(0, 0) * 100.0;
+    const double min_depth = focal_baseline / std::max(1.0, pair.max_disparity);
+    const double max_depth = focal_baseline / std::max(0.5, pair.min_disparity);
+    TruthView warped_truth = truth;
+    warped_truth.right_from_rectified = options.warp;
+    std::vector<Eigen::Vector2f> warped_pixels;
+    for (std::size_t p = 0; p < options.presets.size(); ++p) {
+      MatcherPreset preset = options.presets[p];
+      preset.name += " (warped)";
+      preset.matcher.candidates.rectified = false;
+      preset.matcher.candidates.z_range_mm = std::make_pair(min_depth, max_depth);
+      MethodMatches matches;
+      matches.method = preset.name;
+      try {
+        const MatchReport report =
+            MatchWithPreset(pair.left_grey, right_warped, &calibration, preset, runtime);
+        matches = FromReport(preset.name, report);
+      } catch (const std::exception& error) {
+        evaluation.notices.push_back(preset.name + ": " + error.what());
+      }
+      if (p == 0) warped_pixels = matches.left;
+      evaluation.scores.push_back(ScoreAndCurve(matches, warped_truth, n_edges, &evaluation));
+    }
+    if (options.baselines) {
+      MethodMatches wta = WinnerTakeAllZnccAlongRay(pair.left_grey, right_warped, calibration,
+                                                    warped_pixels, options.wta_zncc_window,
+                                                    min_depth, max_depth);
+      wta.method = "wta-zncc (warped)";
+      evaluation.scores.push_back(ScoreAndCurve(wta, warped_truth, n_edges, &evaluation));
+    }
+  }
+  return evaluation;
+}
+
+EvaluationReport Evaluate(const std::vector<MiddleburyPair>& pairs, const EvaluationOptions& options,
+                          ocl::Runtime* runtime) {
+  const auto start = Clock::now();
+  EvaluationReport report;
+  for (const MiddleburyPair& pair : pairs) {
+    report.pairs.push_back(EvaluatePair(pair, options, runtime));
+    const PairEvaluation& evaluation = report.pairs.back();
+    for (const MethodScore& score : evaluation.scores) {
+      auto it = std::find_if(report.overall.begin(), report.overall.end(),
+                             [&](const MethodScore& s) { return s.method == score.method; });
+      if (it == report.overall.end()) {
+        report.overall.push_back(score);
+      } else {
+        it->Add(score);
+      }
+    }
+  }
+  report.time_ms = MillisecondsSince(start);
+  return report;
+}
+
+nlohmann::json EvaluationJson(const EvaluationReport& report) {
+  auto score_json = [](const MethodScore& s) {
+    return nlohmann::json{{"method", s.method},
+                          {"n_matches", s.n_matches},
+                          {"n_with_truth", s.n_with_truth},
+                          {"n_nonoccluded", s.n_nonoccluded},
+                          {"n_occluded", s.n_occluded},
+                          {"n_invalid", s.n_invalid},
+                          {"n_edges_with_truth", s.n_edges_with_truth},
+                          {"precision_1px", s.precision_1px()},
+                          {"precision_2px", s.precision_2px()},
+                          {"occluded_precision_1px", s.occluded_precision_1px()},
+                          {"density", s.density()},
+                          {"mean_error_px", s.mean_error_px()},
+                          {"time_ms", s.time_ms}};
+  };
+  nlohmann::json json;
+  json["definitions"] = {
+      {"precision_1px", "non-occluded matches with ground truth within 1 px of the true right point"},
+      {"precision_2px", "the same within 2 px"},
+      {"occluded_precision_1px", "matches at occluded pixels (mask or left-right check) within 1 px"},
+      {"density", "matches at pixels with ground truth / left Canny edge pixels with ground truth"},
+      {"baselines", "wta-zncc, opencv-bm and opencv-sgbm are read at the left pixels the first "
+                    "method matched; an invalid output counts as wrong"}};
+  json["pairs"] = nlohmann::json::array();
+  for (const PairEvaluation& pair : report.pairs) {
+    nlohmann::json p{{"name", pair.name},
+                     {"layout", pair.layout},
+                     {"occlusion_source", pair.occlusion_source},
+                     {"width", pair.width},
+                     {"height", pair.height},
+                     {"min_disparity", pair.min_disparity},
+                     {"max_disparity", pair.max_disparity},
+                     {"n_edges", pair.n_edges},
+                     {"n_edges_with_truth", pair.n_edges_with_truth},
+                     {"notices", pair.notices}};
+    p["methods"] = nlohmann::json::array();
+    for (const MethodScore& s : pair.scores) p["methods"].push_back(score_json(s));
+    p["curves"] = nlohmann::json::object();
+    for (const auto& [method, curve] : pair.curves) {
+      nlohmann::json points = nlohmann::json::array();
+      for (const CurvePoint& c : curve) points.push_back({c.density, c.precision_1px});
+      p["curves"][method] = points;
+    }
+    json["pairs"].push_back(p);
+  }
+  json["overall"] = nlohmann::json::array();
+  for (const MethodScore& s : report.overall) json["overall"].push_back(score_json(s));
+  json["time_ms"] = report.time_ms;
+  return json;
+}
+
+std::string EvaluationMarkdown(const EvaluationReport& report) {
+  std::string text =
+      "| pair | method | matches | density % | precision 1 px % | precision 2 px % | occluded "
+      "(1 px %) | invalid | time ms |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  auto row = [&](const std::string& pair, const MethodScore& s) {
+    char line[512];
+    std::snprintf(line, sizeof line, "| %s | %s | %d | %s | %s | %s | %d (%s) | %d | %.0f |\n",
+                  pair.c_str(), s.method.c_str(), s.n_matches, Percent(s.density()).c_str(),
+                  Percent(s.precision_1px()).c_str(), Percent(s.precision_2px()).c_str(), s.n_occluded,
+                  Percent(s.occluded_precision_1px()).c_str(), s.n_invalid, s.time_ms);
+    text += line;
+  };
+  for (const PairEvaluation& pair : report.pairs) {
+    for (const MethodScore& s : pair.scores) row(pair.name, s);
+  }
+  for (const MethodScore& s : report.overall) row("**overall**", s);
+  return text;
+}
+
+}  // namespace hnnstereo::vision

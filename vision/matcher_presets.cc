@@ -1,0 +1,159 @@
+#include "vision/matcher_presets.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "vision/correlation.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+// Pixel centres along the image line a x + b y + c = 0 inside a width x height image, one per
+// pixel step along the line's longer axis.
+std::vector<Eigen::Vector2f> PixelsOnLine(const Eigen::Vector3d& line, int width, int height) {
+  std::vector<Eigen::Vector2f> pixels;
+  const double a = line.x(), b = line.y(), c = line.z();
+  if (std::abs(b) >= std::abs(a)) {  // mostly horizontal: step in x
+    if (b == 0.0) return pixels;
+    for (int x = 0; x < width; ++x) {
+      const double y = -(a * x + c) / b;
+      if (y >= 0.0 && y <= height - 1.0) pixels.emplace_back(static_cast<float>(x), static_cast<float>(y));
+    }
+  } else {
+    for (int y = 0; y < height; ++y) {
+      const double x = -(b * y + c) / a;
+      if (x >= 0.0 && x <= width - 1.0) pixels.emplace_back(static_cast<float>(x), static_cast<float>(y));
+    }
+  }
+  return pixels;
+}
+
+}  // namespace
+
+std::string RefinementOptions::Check() const {
+  if (!(left_right_tolerance_px >= 0.0)) {
+    return "left_right_tolerance_px must be >= 0 (got " + std::to_string(left_right_tolerance_px) + ")";
+  }
+  return {};
+}
+
+std::string MatcherPreset::Check() const {
+  if (auto error = matcher.Check(); !error.empty()) return error;
+  return refinement.Check();
+}
+
+MatcherPreset ThesisPreset() {
+  MatcherPreset preset;
+  preset.name = "hnn-thesis";
+  // The in-class defaults of MatcherOptions are the thesis's values (THESIS.md section 3).
+  preset.matcher = MatcherOptions{};
+  preset.matcher.energy.objective = hnn::Objective::kThesis;  // eq. 6.7, additive
+  preset.matcher.decode.method = hnn::DecodeMethod::kThesisPruning;
+  return preset;
+}
+
+MatcherPreset AccurateDefaultPreset() {
+  MatcherPreset preset;
+  preset.name = "hnn-default";
+  preset.matcher = MatcherOptions{};
+  // Measured in docs/accuracy.md: the pairwise term as geometric consistency times similarity
+  // (THESIS.md section 3 hint) instead of eq. 6.7's additive mix.
+  preset.matcher.energy.objective = hnn::Objective::kGeometrySimilarity;
+  // Measured: the ZNCC left-right check raises precision; the parabola sub-pixel fit does not
+  // pay at 1 px (Tsukuba's integer ground truth loses 3 points), so it stays off.
+  preset.refinement.left_right_check = true;
+  return preset;
+}
+
+std::vector<MatcherPreset> AllPresets() {
+  // Ablations of the default, to measure each refinement on the same network.
+  MatcherPreset geometry = AccurateDefaultPreset();
+  geometry.name = "hnn-geometry";
+  geometry.refinement = RefinementOptions{};
+  MatcherPreset geometry_lr = geometry;
+  geometry_lr.name = "hnn-geometry-lr";
+  geometry_lr.refinement.left_right_check = true;
+  return {AccurateDefaultPreset(), ThesisPreset(), geometry, geometry_lr};
+}
+
+std::optional<MatcherPreset> FindPreset(const std::string& name) {
+  for (MatcherPreset& preset : AllPresets()) {
+    if (preset.name == name) return preset;
+  }
+  return std::nullopt;
+}
+
+void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                   const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
+                   const RefinementOptions& refinement, MatchReport* report) {
+  if (auto error = refinement.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (!refinement.left_right_check && !refinement.subpixel) return;
+  const bool rectified = matcher.candidates.rectified || calibration == nullptr;
+  if (!rectified && calibration == nullptr) {
+    throw std::invalid_argument("RefineMatches: an unrectified pair needs its calibration");
+  }
+  const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window);
+  const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
+  const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
+  std::vector<StereoMatch> kept;
+  kept.reserve(report->matches.size());
+  for (StereoMatch match : report->matches) {
+    if (refinement.left_right_check) {
+      // The reverse search: the best left point for this right point (winner-take-all ZNCC).
+      float best = -std::numeric_limits<float>::infinity();
+      Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
+      if (rectified) {
+        for (int d = d_min; d <= d_max; ++d) {
+          const Eigen::Vector2f left(std::round(match.right.x()) + static_cast<float>(d),
+                                     std::round(match.right.y()));
+          if (left.x() > static_cast<float>(left_grey.cols - 1)) break;
+          const float score = zncc(left, match.right);
+          if (score > best) best = score, best_left = left;
+        }
+      } else {
+        const Eigen::Vector3d line =
+            calibration->F.transpose() * Eigen::Vector3d(match.right.x(), match.right.y(), 1.0);
+        for (const Eigen::Vector2f& left : PixelsOnLine(line, left_grey.cols, left_grey.rows)) {
+          const float score = zncc(left, match.right);
+          if (score > best) best = score, best_left = left;
+        }
+      }
+      if (!(std::abs(best_left.x() - match.left.x()) <= refinement.left_right_tolerance_px &&
+            std::abs(best_left.y() - match.left.y()) <= refinement.left_right_tolerance_px + 0.5f)) {
+        continue;
+      }
+    }
+    if (refinement.subpixel && rectified) {
+      // Parabola through ZNCC at x - 1, x, x + 1: vertex offset (c- - c+) / (2 (c- - 2 c0 + c+)).
+      const Eigen::Vector2f step(1.0f, 0.0f);
+      const Eigen::Vector2f right(std::round(match.right.x()), std::round(match.right.y()));
+      const double before = zncc(match.left, right - step);
+      const double centre = zncc(match.left, right);
+      const double after = zncc(match.left, right + step);
+      const double curvature = before - 2.0 * centre + after;
+      if (curvature < 0.0) {
+        const double offset = std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
+        match.right.x() = right.x() + static_cast<float>(offset);
+      }
+    }
+    kept.push_back(match);
+  }
+  report->matches = std::move(kept);
+}
+
+MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                            const calib::StereoCalibration* calibration, const MatcherPreset& preset,
+                            ocl::Runtime* runtime) {
+  if (auto error = preset.Check(); !error.empty()) throw std::invalid_argument(error);
+  MatchReport report = MatchStereo(left_grey, right_grey, calibration, preset.matcher, runtime);
+  const auto start = std::chrono::steady_clock::now();
+  RefineMatches(left_grey, right_grey, calibration, preset.matcher, preset.refinement, &report);
+  report.timing_ms.total +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace hnnstereo::vision

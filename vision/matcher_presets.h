@@ -1,0 +1,63 @@
+#pragma once
+// Named matcher settings (issue 6): the thesis-faithful settings, kept selectable, and the
+// measured better default (docs/accuracy.md gives every change and its measured effect), plus
+// the refinements that run after the network: a left-right consistency check and sub-pixel
+// refinement by a parabola fit of ZNCC.
+
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "calib/calibration.h"
+#include "host/opencl_runtime.h"
+#include "vision/stereo_matcher.h"
+
+namespace hnnstereo::vision {
+
+/// Steps after the decoded network (they need the images, so they are not decoding options).
+struct RefinementOptions {
+  /// Left-right consistency: from each match's right point, search the left image along the
+  /// epipolar line (rectified: the row, same disparity range) for the best ZNCC; keep the match
+  /// only when that lands within `left_right_tolerance_px` of its left point.
+  bool left_right_check = false;
+  double left_right_tolerance_px = 1.0;  ///< px
+  /// Sub-pixel: fit a parabola to ZNCC at the right point and its two neighbours along the row
+  /// (rectified pairs only) and move the right point to the vertex (at most 0.5 px).
+  bool subpixel = false;
+  std::string Check() const;
+};
+
+struct MatcherPreset {
+  std::string name;
+  MatcherOptions matcher;
+  RefinementOptions refinement;
+  std::string Check() const;
+};
+
+/// Thesis-faithful settings (THESIS.md section 3): eq. 6.7 additive compatibility, W1 = 0.3,
+/// W2 = 0.7, A = 2, B = C = D = 1, T = 1.5, ZNCC 7x7, continuous activation, correlation
+/// initial state, thesis pruning (row max, column max, threshold 0.5), feature-vs-feature.
+MatcherPreset ThesisPreset();
+
+/// The measured better default (docs/accuracy.md): geometric consistency times similarity
+/// (THESIS.md hint) and the left-right ZNCC check (sub-pixel refinement measured and left off).
+MatcherPreset AccurateDefaultPreset();
+
+/// All named presets; `name` lookup for --preset.
+std::vector<MatcherPreset> AllPresets();
+std::optional<MatcherPreset> FindPreset(const std::string& name);
+
+/// MatchStereo, then the preset's refinements. The report's matches are the refined ones;
+/// `timing_ms.total` includes the refinement time.
+MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                            const calib::StereoCalibration* calibration, const MatcherPreset& preset,
+                            ocl::Runtime* runtime);
+
+/// The refinements alone, on a finished report (rectified pairs; with a calibration the
+/// left-right check searches the epipolar line F^T x_r and sub-pixel is skipped).
+void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                   const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
+                   const RefinementOptions& refinement, MatchReport* report);
+
+}  // namespace hnnstereo::vision
