@@ -8,7 +8,8 @@
 #include <unordered_map>
 
 #include "calib/epipolar.h"
-#include "vision/triangulation.h"
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 namespace hnnstereo::vision {
 namespace {
@@ -82,11 +83,23 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   };
   auto height_ok = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) {
     if (!options.z_range_mm || calibration == nullptr) return true;
-    const auto point = TriangulateLinear(calibration->P1, calibration->P2, l.cast<double>(),
-                                         r.cast<double>());
-    if (!point || !point->in_front) return false;
-    const double z = point->point_in_world.z();
-    return z >= options.z_range_mm->first && z <= options.z_range_mm->second;
+    // Inhomogeneous linear triangulation (H&Z 12.2 with X_4 = 1) by normal equations: the gate
+    // runs for every candidate on the epipolar band, so it avoids a 4x4 SVD per pair.
+    const auto& P1 = calibration->P1;
+    const auto& P2 = calibration->P2;
+    Eigen::Matrix<double, 4, 4> A;
+    A.row(0) = l.x() * P1.row(2) - P1.row(0);
+    A.row(1) = l.y() * P1.row(2) - P1.row(1);
+    A.row(2) = r.x() * P2.row(2) - P2.row(0);
+    A.row(3) = r.y() * P2.row(2) - P2.row(1);
+    const Eigen::Matrix<double, 4, 3> M = A.leftCols<3>();
+    const Eigen::Vector3d X = (M.transpose() * M).ldlt().solve(-M.transpose() * A.col(3));
+    if (!X.allFinite()) return false;
+    const double depth1 = (P1 * X.homogeneous()).z(), depth2 = (P2 * X.homogeneous()).z();
+    if (depth1 * P1.leftCols<3>().determinant() <= 0 || depth2 * P2.leftCols<3>().determinant() <= 0) {
+      return false;  // behind a camera
+    }
+    return X.z() >= options.z_range_mm->first && X.z() <= options.z_range_mm->second;
   };
 
   std::vector<Scored> scored;

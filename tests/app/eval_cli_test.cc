@@ -1,8 +1,6 @@
 // The eval command's contract: EVAL.json, Markdown, plot; a clean failure on a folder without a
 // Middlebury set.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -12,43 +10,20 @@
 #include <sstream>
 #include <string>
 
+#include "cli_runner.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kTeddy = std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy";
+using hnnstereo::testing::CliResult;
+using hnnstereo::testing::RunCli;
+const std::string& kTeddy = hnnstereo::testing::kTeddyDir;
 
-struct Result {
-  int exit_code;
-  std::string output;
-};
-
-Result RunCli(const std::string& arguments) {
-  const fs::path log = fs::temp_directory_path() / ("hnnstereo_eval_cli_" + std::to_string(::getpid()) + ".log");
-  const std::string command = std::string(HNNSTEREO_BINARY) + " " + arguments + " > " + log.string() + " 2>&1";
-  const int status = std::system(command.c_str());
-  std::ifstream in(log);
-  std::stringstream text;
-  text << in.rdbuf();
-  fs::remove(log);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
-
-class EvalCli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("hnnstereo_eval_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
-};
+class EvalCli : public hnnstereo::testing::CliTest {};
 
 TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
-  const Result result =
+  const CliResult result =
       RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") + " --markdown " +
              Path("eval.md") + " --engine cpu --max-features 1500 --max-steps 150");
   ASSERT_EQ(result.exit_code, 0) << result.output;
@@ -84,14 +59,14 @@ TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
 
 TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {
   fs::create_directories(Path("input_empty"));
-  const Result result = RunCli("eval --dataset " + Path("input_empty") + " --out " + Path("eval.json"));
+  const CliResult result = RunCli("eval --dataset " + Path("input_empty") + " --out " + Path("eval.json"));
   EXPECT_NE(result.exit_code, 0);
   EXPECT_NE(result.output.find("hnnstereo: error: no Middlebury set"), std::string::npos) << result.output;
   EXPECT_FALSE(fs::exists(Path("eval.json")));
 }
 
 TEST_F(EvalCli, UnknownPresetFailsCleanly) {
-  const Result result = RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") +
+  const CliResult result = RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") +
                                " --presets nonsense");
   EXPECT_NE(result.exit_code, 0);
   EXPECT_NE(result.output.find("unknown preset"), std::string::npos) << result.output;
@@ -99,7 +74,7 @@ TEST_F(EvalCli, UnknownPresetFailsCleanly) {
 }
 
 TEST_F(EvalCli, HelpNamesTheLayoutsAndOptions) {
-  const Result result = RunCli("eval --help");
+  const CliResult result = RunCli("eval --help");
   EXPECT_EQ(result.exit_code, 0);
   for (const char* word : {"--dataset", "--out", "--markdown", "--plot", "--presets", "--warped",
                            "2014", "PFM"}) {

@@ -1,56 +1,31 @@
 // The match command's contract: files, report keys, and bad input (a one-line reason, a
 // non-zero exit, no output file).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <sstream>
 #include <string>
+
+#include "cli_runner.h"
 
 namespace {
 
 namespace fs = std::filesystem;
+using hnnstereo::testing::CliResult;
+using hnnstereo::testing::RunCli;
+const std::string& kTeddy = hnnstereo::testing::kTeddyDir;
 
-const std::string kTeddy = std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy";
-
-struct Result {
-  int exit_code;
-  std::string output;
-};
-
-Result RunCli(const std::string& arguments, const std::string& environment = "") {
-  const fs::path log = fs::temp_directory_path() / ("hnnstereo_cli_" + std::to_string(::getpid()) + ".log");
-  const std::string command = environment + " " + HNNSTEREO_BINARY + " " + arguments + " > " +
-                              log.string() + " 2>&1";
-  const int status = std::system(command.c_str());
-  std::ifstream in(log);
-  std::stringstream text;
-  text << in.rdbuf();
-  fs::remove(log);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-}
-
-class MatchCli : public ::testing::Test {
+class MatchCli : public hnnstereo::testing::CliTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("hnnstereo_match_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   std::string Teddy(const std::string& extra) const {
     return "match --left " + kTeddy + "/im2.png --right " + kTeddy + "/im6.png --out " +
            Path("m.csv") + " --max-features 1500 " + extra;
   }
   // A failed command prints one line starting "hnnstereo: error:" and writes nothing.
-  void ExpectCleanFailure(const Result& result, const std::string& reason) const {
+  void ExpectCleanFailure(const CliResult& result, const std::string& reason) const {
     EXPECT_NE(result.exit_code, 0) << result.output;
     EXPECT_NE(result.output.find("hnnstereo: error: "), std::string::npos) << result.output;
     EXPECT_NE(result.output.find(reason), std::string::npos) << result.output;
@@ -59,11 +34,10 @@ class MatchCli : public ::testing::Test {
       EXPECT_TRUE(name.rfind("input", 0) == 0) << "unexpected output file " << name;
     }
   }
-  fs::path dir_;
 };
 
 TEST_F(MatchCli, WritesTheContractFiles) {
-  const Result result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json") +
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json") +
                                   " --overlay " + Path("o.png")));
   ASSERT_EQ(result.exit_code, 0) << result.output;
   std::ifstream csv(Path("m.csv"));
@@ -90,7 +64,7 @@ TEST_F(MatchCli, WritesTheContractFiles) {
 }
 
 TEST_F(MatchCli, HelpTeachesTheOptions) {
-  const Result result = RunCli("match --help");
+  const CliResult result = RunCli("match --help");
   EXPECT_EQ(result.exit_code, 0);
   for (const char* option : {"--left", "--rectified", "--calib", "--max-disparity", "--engine",
                              "--dense", "--report", "--overlay", "--config", "--zrange"}) {
@@ -143,13 +117,13 @@ TEST_F(MatchCli, NaNInTheFundamentalMatrix) {
 }
 
 TEST_F(MatchCli, OverTheMemoryBudget) {
-  const Result result = RunCli(Teddy("--rectified --dense --memory-budget-mb 1"));
+  const CliResult result = RunCli(Teddy("--rectified --dense --memory-budget-mb 1"));
   ExpectCleanFailure(result, "memory budget");
   EXPECT_NE(result.output.find("neurons"), std::string::npos) << result.output;
 }
 
 TEST_F(MatchCli, NoOpenClPlatformFallsBackToTheCpuEngine) {
-  const Result result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json")),
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json")),
                             "OCL_ICD_VENDORS=" + Path("no_vendors") + " OPENCL_VENDOR_PATH=" +
                                 Path("no_vendors"));
   ASSERT_EQ(result.exit_code, 0) << result.output;
@@ -160,7 +134,7 @@ TEST_F(MatchCli, NoOpenClPlatformFallsBackToTheCpuEngine) {
 
 TEST_F(MatchCli, ConfigFileSetsOptions) {
   std::ofstream(Path("input_options.yml")) << "# matcher options\nmax_disparity: 64\nengine: cpu\nrectified: true\n";
-  const Result result = RunCli(Teddy("--config " + Path("input_options.yml") + " --report " + Path("r.json")));
+  const CliResult result = RunCli(Teddy("--config " + Path("input_options.yml") + " --report " + Path("r.json")));
   ASSERT_EQ(result.exit_code, 0) << result.output;
   std::ifstream report_file(Path("r.json"));
   const auto report = nlohmann::json::parse(report_file);

@@ -1,0 +1,125 @@
+// Part poses: minimum-area rectangle, central moments (thesis 6.2.11), top-face height/centroid.
+#include "vision/object_pose.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <vector>
+
+namespace hnnstereo::vision {
+namespace {
+
+constexpr unsigned kSeed = 20240705;
+
+// Points on the outline of a rectangle (length along yaw) plus its interior marks.
+std::vector<Eigen::Vector2d> RectanglePoints(const Eigen::Vector2d& centre, double length,
+                                             double width, double yaw_deg, int count,
+                                             double sigma, std::mt19937* random) {
+  std::uniform_real_distribution<double> uniform(-0.5, 0.5);
+  std::normal_distribution<double> noise(0.0, sigma);
+  const Eigen::Matrix2d R = Eigen::Rotation2Dd(yaw_deg * std::numbers::pi / 180.0).toRotationMatrix();
+  std::vector<Eigen::Vector2d> points;
+  for (int k = 0; k < count; ++k) {
+    Eigen::Vector2d local;
+    const double t = uniform(*random);
+    switch (k % 4) {
+      case 0: local = {t * length, -0.5 * width}; break;
+      case 1: local = {t * length, 0.5 * width}; break;
+      case 2: local = {-0.5 * length, t * width}; break;
+      default: local = {0.5 * length, t * width}; break;
+    }
+    points.push_back(centre + R * local + Eigen::Vector2d(noise(*random), noise(*random)));
+  }
+  return points;
+}
+
+TEST(ObjectPose, NormaliseAxisAngleMapsIntoHalfOpenRange) {
+  EXPECT_DOUBLE_EQ(NormaliseAxisAngle(90.0), 90.0);
+  EXPECT_DOUBLE_EQ(NormaliseAxisAngle(-90.0), 90.0);
+  EXPECT_NEAR(NormaliseAxisAngle(170.0), -10.0, 1e-12);
+  EXPECT_NEAR(NormaliseAxisAngle(-135.0), 45.0, 1e-12);
+  EXPECT_NEAR(NormaliseAxisAngle(360.0 + 30.0), 30.0, 1e-12);
+}
+
+TEST(ObjectPose, ConvexHullOfASquareWithInteriorPoints) {
+  const std::vector<Eigen::Vector2d> hull =
+      ConvexHull({{0, 0}, {2, 0}, {2, 2}, {0, 2}, {1, 1}, {1, 0}, {0.5, 1.5}});
+  ASSERT_EQ(hull.size(), 4u);
+  double area = 0.0;  // shoelace: positive for counter-clockwise
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const auto& a = hull[i];
+    const auto& b = hull[(i + 1) % hull.size()];
+    area += 0.5 * (a.x() * b.y() - b.x() * a.y());
+  }
+  EXPECT_NEAR(area, 4.0, 1e-12);
+}
+
+class RectangleYaw : public ::testing::TestWithParam<double> {};
+
+TEST_P(RectangleYaw, MinAreaRectangleAndMomentsRecoverTheLongAxis) {
+  std::mt19937 random(kSeed + static_cast<unsigned>(GetParam() + 100));
+  const double yaw = GetParam();
+  const auto points = RectanglePoints({120, 340}, 60, 30, yaw, 400, 0.3, &random);
+  const Rectangle2D rectangle = MinAreaRectangle(points);
+  EXPECT_NEAR(std::abs(NormaliseAxisAngle(rectangle.yaw_deg - yaw)), 0.0, 1.0);
+  // The hull of noisy points is larger by about three sigma on each side.
+  EXPECT_NEAR(rectangle.length, 61.0, 1.5);
+  EXPECT_NEAR(rectangle.width, 31.0, 1.5);
+  EXPECT_NEAR(rectangle.centre.x(), 120.0, 0.5);
+  EXPECT_NEAR(rectangle.centre.y(), 340.0, 0.5);
+  // Moments weigh the randomly sampled outline: less exact than the rectangle.
+  EXPECT_NEAR(std::abs(NormaliseAxisAngle(YawFromCentralMoments(points) - yaw)), 0.0, 3.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Yaws, RectangleYaw, ::testing::Values(-89.0, -45.0, -12.5, 0.0, 7.0, 33.0, 60.0, 90.0));
+
+TEST(ObjectPose, TopFaceHeightAndCentreIgnoreSidesAndStrayPoints) {
+  std::mt19937 random(kSeed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& xy : RectanglePoints({50, 400}, 70, 40, 25.0, 300, 0.3, &random)) {
+    points.emplace_back(xy.x(), xy.y(), 80.0 + noise(random));
+  }
+  // Side edges at lower heights (vertical corner edges), and two high mismatches.
+  std::uniform_real_distribution<double> down(5.0, 75.0);
+  for (int k = 0; k < 60; ++k) points.emplace_back(50 + 30.0, 400 + 5.0, down(random));
+  points.emplace_back(50, 400, 140.0);
+  points.emplace_back(60, 410, 150.0);
+  std::vector<int> indices(points.size());
+  for (std::size_t i = 0; i < indices.size(); ++i) indices[i] = static_cast<int>(i);
+  const ObjectPose pose = EstimateObjectPose(points, indices);
+  EXPECT_NEAR(pose.height_mm, 80.0, 0.5);
+  EXPECT_NEAR(pose.centroid.z(), pose.height_mm, 1e-12);
+  EXPECT_NEAR((pose.centroid.head<2>() - Eigen::Vector2d(50, 400)).norm(), 0.0, 1.0);
+  EXPECT_NEAR(std::abs(NormaliseAxisAngle(pose.yaw_deg - 25.0)), 0.0, 1.5);
+  EXPECT_EQ(pose.points, static_cast<int>(points.size()));
+  EXPECT_LT(pose.top_points, pose.points);
+  EXPECT_GT(pose.top_points, 250);
+}
+
+TEST(ObjectPose, PosesAreTallestFirst) {
+  std::vector<Eigen::Vector3d> points = {{0, 0, 10}, {1, 0, 10}, {0, 1, 10},
+                                         {50, 0, 90}, {51, 0, 90}, {50, 1, 90},
+                                         {100, 0, 40}, {101, 0, 40}, {100, 1, 40}};
+  const auto poses = EstimateObjectPoses(points, {{0, 1, 2}, {3, 4, 5}, {6, 7, 8}});
+  ASSERT_EQ(poses.size(), 3u);
+  EXPECT_DOUBLE_EQ(poses[0].height_mm, 90.0);
+  EXPECT_DOUBLE_EQ(poses[1].height_mm, 40.0);
+  EXPECT_DOUBLE_EQ(poses[2].height_mm, 10.0);
+}
+
+TEST(ObjectPose, BadInputThrows) {
+  ObjectPoseOptions options;
+  options.top_layer_mm = 0.0;
+  EXPECT_NE(options.Check().find("top_layer_mm"), std::string::npos);
+  EXPECT_THROW(EstimateObjectPose({{0, 0, 1}}, {0}, options), std::invalid_argument);
+  EXPECT_THROW(EstimateObjectPose({{0, 0, 1}}, {}), std::invalid_argument);
+  EXPECT_EQ(ParseYawMethod("moments"), YawMethod::kCentralMoments);
+  EXPECT_FALSE(ParseYawMethod("pca").has_value());
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

@@ -1,0 +1,220 @@
+// The pick pipeline end to end on seeded synthetic scenes (issue 4 acceptance): render, calibrate
+// from the rendered target images (not the truth), match, triangulate, cluster, poses.
+//
+// The default run checks a few scenes; HNNSTEREO_ACCEPTANCE=1 runs the full acceptance set (20
+// scenes with 1-9 parts, and the same with Gaussian noise on F) and prints the figures.
+#include "vision/position_sensing.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <random>
+#include <string>
+#include <unistd.h>
+
+#include "calib/circle_calibration.h"
+#include "calib/epipolar.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool FullAcceptance() {
+  const char* value = std::getenv("HNNSTEREO_ACCEPTANCE");
+  return value != nullptr && std::string(value) == "1";
+}
+
+// Renders scene `seed`, writes its target images, calibrates from them.
+struct CalibratedScene {
+  RenderedScene scene;
+  calib::StereoCalibration calibrated;
+};
+
+CalibratedScene RenderAndCalibrate(std::uint64_t seed, int num_objects) {
+  SceneRenderOptions options;
+  options.seed = seed;
+  options.num_objects = num_objects;
+  CalibratedScene result;
+  result.scene = RenderScene(options);
+  const RenderedTarget target = RenderTargetPlacements(result.scene.cameras, options);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("hnnstereo_sensing_" + std::to_string(::getpid()) + "_" + std::to_string(seed));
+  WriteSceneDirectory(result.scene, target, dir.string());
+  result.calibrated = calib::CalibrateCircleTarget((dir / "target").string()).calibration;
+  fs::remove_all(dir);
+  return result;
+}
+
+// Zero-mean Gaussian noise on the entries of F (unit Frobenius norm), sigma relative to |F|.
+calib::StereoCalibration WithNoisyF(calib::StereoCalibration calibration, double sigma,
+                                    std::uint64_t seed) {
+  std::mt19937_64 random(seed);
+  std::normal_distribution<double> noise(0.0, sigma);
+  calibration.F /= calibration.F.norm();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) calibration.F(r, c) += noise(random);
+  }
+  return calibration;
+}
+
+struct Figures {
+  int true_parts = 0, detected = 0, false_objects = 0;
+  std::vector<double> centroid_mm, height_mm, yaw_deg;
+  double Median(std::vector<double> v) const {
+    if (v.empty()) return 0.0;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  }
+  double Max(const std::vector<double>& v) const {
+    double m = 0.0;
+    for (double x : v) m = std::max(m, std::abs(x));
+    return m;
+  }
+  void Add(const TruthComparison& comparison, std::size_t num_true) {
+    true_parts += static_cast<int>(num_true);
+    detected += comparison.detected;
+    false_objects += comparison.false_objects;
+    for (const TruthPairing& pair : comparison.pairs) {
+      if (pair.detected_index < 0) continue;
+      centroid_mm.push_back(pair.centroid_error_mm);
+      height_mm.push_back(pair.height_error_mm);
+      if (pair.yaw_defined) yaw_deg.push_back(pair.yaw_error_deg);
+    }
+  }
+  void Print(const std::string& title) const {
+    std::cout << title << ": recall " << detected << "/" << true_parts << ", false " << false_objects
+              << ", centroid median " << Median(centroid_mm) << " max " << Max(centroid_mm)
+              << " mm, |height| median " << Median([&] {
+                   std::vector<double> a;
+                   for (double h : height_mm) a.push_back(std::abs(h));
+                   return a;
+                 }())
+              << " max " << Max(height_mm) << " mm, box yaw median " << Median(yaw_deg) << " max "
+              << Max(yaw_deg) << " deg\n";
+  }
+};
+
+PositionSensingOptions CpuOptions() {
+  PositionSensingOptions options;
+  options.matcher.engine = hnn::EngineKind::kCpu;
+  return options;
+}
+
+TEST(PositionSensing, TriangulationRejectsBehindCameraAndLargeResiduals) {
+  const calib::StereoCalibration cameras = PickCellCameras({});
+  auto project = [](const calib::ProjectionMatrix& P, const Eigen::Vector3d& X) {
+    return Eigen::Vector2f((P * X.homogeneous()).hnormalized().cast<float>());
+  };
+  MatchReport match;
+  const Eigen::Vector3d on_part(100, 380, 40);
+  match.matches.push_back({project(cameras.P1, on_part), project(cameras.P2, on_part), 1.0f, 0, 0});
+  // Off the epipolar line by 20 px: the rays miss each other.
+  match.matches.push_back({project(cameras.P1, on_part),
+                           project(cameras.P2, on_part) + Eigen::Vector2f(20.0f, 0.0f), 1.0f, 1, 1});
+  // Above both cameras: reprojects exactly, but behind them.
+  const Eigen::Vector3d behind(100, 380, 2000);
+  match.matches.push_back({project(cameras.P1, behind), project(cameras.P2, behind), 1.0f, 2, 2});
+  const PositionSensingReport report = SensePositionsFromMatches(match, cameras, CpuOptions());
+  EXPECT_EQ(report.triangulation.accepted, 1);
+  EXPECT_EQ(report.triangulation.large_residual, 1);
+  EXPECT_EQ(report.triangulation.behind_camera, 1);
+  ASSERT_EQ(report.points_in_world.size(), 1u);
+  EXPECT_LT((report.points_in_world[0] - on_part).norm(), 1e-2);
+  EXPECT_EQ(report.match_of_point[0], 0);
+}
+
+TEST(PositionSensing, BadOptionsAreRefused) {
+  PositionSensingOptions options = CpuOptions();
+  options.max_reprojection_error_px = 0.0;
+  EXPECT_NE(options.Check().find("max_reprojection_error_px"), std::string::npos);
+  EXPECT_THROW(SensePositionsFromMatches({}, PickCellCameras({}), options), std::invalid_argument);
+  options = CpuOptions();
+  options.matcher.candidates.rectified = true;
+  EXPECT_FALSE(options.Check().empty());
+  EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
+               std::invalid_argument);
+}
+
+TEST(PositionSensing, CompareWithTruthPairsNearestAndCountsFalseObjects) {
+  SceneObject box;
+  box.centre_mm = {100, 300};
+  box.size_mm = {60, 30, 50};
+  box.yaw_deg = 80.0;
+  ObjectPose near_box;
+  near_box.centroid = {101, 300, 51};
+  near_box.height_mm = 51;
+  near_box.yaw_deg = -88.0;  // 12 degrees from 80 across the +-90 wrap
+  ObjectPose far_away;
+  far_away.centroid = {300, 100, 20};
+  const TruthComparison comparison = CompareWithTruth({far_away, near_box}, {box});
+  EXPECT_EQ(comparison.detected, 1);
+  EXPECT_EQ(comparison.false_objects, 1);
+  EXPECT_EQ(comparison.pairs[0].detected_index, 1);
+  EXPECT_NEAR(comparison.pairs[0].centroid_error_mm, 1.0, 1e-12);
+  EXPECT_NEAR(comparison.pairs[0].height_error_mm, 1.0, 1e-12);
+  EXPECT_NEAR(comparison.pairs[0].yaw_error_deg, 12.0, 1e-9);
+}
+
+// The issue's acceptance figures on seeded scenes calibrated from the target images.
+TEST(PositionSensing, AcceptanceOnSeededScenes) {
+  const int num_scenes = FullAcceptance() ? 20 : 3;
+  Figures figures;
+  for (int s = 0; s < num_scenes; ++s) {
+    const auto seed = static_cast<std::uint64_t>(100 + s);
+    const int num_objects = 1 + s % 9;
+    const CalibratedScene scene = RenderAndCalibrate(seed, num_objects);
+    const PositionSensingReport report =
+        SensePositions(scene.scene.left, scene.scene.right, scene.calibrated, CpuOptions(), nullptr);
+    const TruthComparison comparison = CompareWithTruth(report.objects, scene.scene.objects);
+    EXPECT_EQ(comparison.detected, num_objects) << "seed " << seed;
+    EXPECT_EQ(comparison.false_objects, 0) << "seed " << seed;
+    figures.Add(comparison, scene.scene.objects.size());
+  }
+  figures.Print(std::to_string(num_scenes) + " scenes");
+  EXPECT_LE(figures.Median(figures.centroid_mm), 1.5);
+  EXPECT_LE(figures.Max(figures.centroid_mm), 4.0);
+  EXPECT_LE(figures.Max(figures.height_mm), 2.0);
+  EXPECT_LE(figures.Max(figures.yaw_deg), 2.0);
+}
+
+// The thesis's robustness test: zero-mean Gaussian noise on the entries of F (unit Frobenius
+// norm), sigma = kFNoiseSigma. The test prints the mean epipolar distance this noise puts between
+// true correspondences (the calibrated F gives about 0.05 px).
+constexpr double kFNoiseSigma = 5e-7;
+
+TEST(PositionSensing, RecallWithGaussianNoiseOnF) {
+  const int num_scenes = FullAcceptance() ? 20 : 2;
+  Figures figures;
+  double shift_sum = 0.0;
+  int shift_count = 0;
+  for (int s = 0; s < num_scenes; ++s) {
+    const auto seed = static_cast<std::uint64_t>(100 + s);
+    const int num_objects = 1 + s % 9;
+    const CalibratedScene scene = RenderAndCalibrate(seed, num_objects);
+    const calib::StereoCalibration noisy = WithNoisyF(scene.calibrated, kFNoiseSigma, seed);
+    for (const SceneObject& object : scene.scene.objects) {
+      for (const Eigen::Vector2d& corner : object.Footprint()) {
+        const Eigen::Vector4d X(corner.x(), corner.y(), object.height_mm(), 1.0);
+        shift_sum += calib::EpipolarDistancePx(noisy.F, (scene.scene.cameras.P1 * X).hnormalized(),
+                                               (scene.scene.cameras.P2 * X).hnormalized());
+        ++shift_count;
+      }
+    }
+    const PositionSensingReport report =
+        SensePositions(scene.scene.left, scene.scene.right, noisy, CpuOptions(), nullptr);
+    figures.Add(CompareWithTruth(report.objects, scene.scene.objects), scene.scene.objects.size());
+  }
+  std::cout << "F noise sigma " << kFNoiseSigma << ": mean epipolar distance of true points "
+            << shift_sum / std::max(1, shift_count) << " px\n";
+  figures.Print(std::to_string(num_scenes) + " scenes, noisy F");
+  EXPECT_GE(figures.detected, static_cast<int>(std::ceil(0.95 * figures.true_parts)));
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

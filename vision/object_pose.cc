@@ -1,0 +1,243 @@
+#include "vision/object_pose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+namespace hnnstereo::vision {
+namespace {
+
+constexpr double kDegreesPerRadian = 180.0 / std::numbers::pi;
+
+double Cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+}
+
+double Quantile(std::vector<double> values, double q) {
+  const auto k = static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<long>(k), values.end());
+  return values[k];
+}
+
+}  // namespace
+
+std::string_view YawMethodName(YawMethod method) {
+  return method == YawMethod::kMinAreaRectangle ? "rectangle" : "moments";
+}
+
+std::optional<YawMethod> ParseYawMethod(std::string_view name) {
+  if (name == "rectangle") return YawMethod::kMinAreaRectangle;
+  if (name == "moments") return YawMethod::kCentralMoments;
+  return std::nullopt;
+}
+
+std::string ObjectPoseOptions::Check() const {
+  std::ostringstream out;
+  if (!(top_layer_mm > 0.0)) {
+    out << "ObjectPoseOptions.top_layer_mm must be positive (is " << top_layer_mm << ")";
+  } else if (!(densest_slab_factor > 0.0)) {
+    out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
+        << ")";
+  }
+  return out.str();
+}
+
+double NormaliseAxisAngle(double angle_deg) {
+  double angle = std::fmod(angle_deg, 180.0);
+  if (angle <= -90.0) angle += 180.0;
+  if (angle > 90.0) angle -= 180.0;
+  return angle;
+}
+
+double YawFromCentralMoments(const std::vector<Eigen::Vector2d>& points) {
+  if (points.size() < 2) return 0.0;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  double mu20 = 0, mu02 = 0, mu11 = 0;
+  for (const auto& p : points) {
+    const Eigen::Vector2d d = p - mean;
+    mu20 += d.x() * d.x();
+    mu02 += d.y() * d.y();
+    mu11 += d.x() * d.y();
+  }
+  // Thesis 6.2.11: phi = 0.5 atan2(2 mu11, mu20 - mu02).
+  return NormaliseAxisAngle(0.5 * std::atan2(2.0 * mu11, mu20 - mu02) * kDegreesPerRadian);
+}
+
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> points) {
+  std::sort(points.begin(), points.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  points.erase(std::unique(points.begin(), points.end()), points.end());
+  if (points.size() < 3) return points;
+  std::vector<Eigen::Vector2d> hull(2 * points.size());
+  std::size_t k = 0;
+  for (const auto& p : points) {  // lower hull
+    while (k >= 2 && Cross(hull[k - 2], hull[k - 1], p) <= 0) --k;
+    hull[k++] = p;
+  }
+  for (std::size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {  // upper hull
+    while (k >= lower && Cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k - 1);
+  return hull;
+}
+
+Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points) {
+  Rectangle2D best;
+  const std::vector<Eigen::Vector2d> hull = ConvexHull(points);
+  if (hull.empty()) return best;
+  if (hull.size() == 1) {
+    best.centre = hull[0];
+    return best;
+  }
+  double best_area = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const Eigen::Vector2d edge = hull[(i + 1) % hull.size()] - hull[i];
+    if (edge.norm() < 1e-12) continue;
+    const Eigen::Vector2d u = edge.normalized();
+    const Eigen::Vector2d v(-u.y(), u.x());
+    double u_min = 1e300, u_max = -1e300, v_min = 1e300, v_max = -1e300;
+    for (const auto& p : hull) {
+      u_min = std::min(u_min, p.dot(u));
+      u_max = std::max(u_max, p.dot(u));
+      v_min = std::min(v_min, p.dot(v));
+      v_max = std::max(v_max, p.dot(v));
+    }
+    const double area = (u_max - u_min) * (v_max - v_min);
+    if (area < best_area) {
+      best_area = area;
+      best.centre = 0.5 * (u_min + u_max) * u + 0.5 * (v_min + v_max) * v;
+      const bool u_is_long = (u_max - u_min) >= (v_max - v_min);
+      best.length = u_is_long ? u_max - u_min : v_max - v_min;
+      best.width = u_is_long ? v_max - v_min : u_max - u_min;
+      const Eigen::Vector2d long_axis = u_is_long ? u : v;
+      best.yaw_deg = NormaliseAxisAngle(std::atan2(long_axis.y(), long_axis.x()) * kDegreesPerRadian);
+    }
+  }
+  return best;
+}
+
+ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_world,
+                              const std::vector<int>& indices, const ObjectPoseOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  if (indices.empty()) throw std::invalid_argument("EstimateObjectPose: empty cluster");
+  ObjectPose pose;
+  pose.point_indices = indices;
+  pose.points = static_cast<int>(indices.size());
+  std::vector<double> heights;
+  std::vector<Eigen::Vector2d> all_xy;
+  for (int i : indices) {
+    const Eigen::Vector3d& p = points_in_world.at(static_cast<std::size_t>(i));
+    heights.push_back(p.z());
+    all_xy.push_back(p.head<2>());
+  }
+  // Top face: the densest slab of heights (ties: the higher), then the median of the layer
+  // around it, twice.
+  std::vector<double> sorted = heights;
+  std::sort(sorted.begin(), sorted.end());
+  const double slab = options.densest_slab_factor * options.top_layer_mm;
+  std::size_t best_start = 0, best_count = 0;
+  for (std::size_t i = 0, j = 0; i < sorted.size(); ++i) {
+    j = std::max(j, i);
+    while (j + 1 < sorted.size() && sorted[j + 1] <= sorted[i] + slab) ++j;
+    if (j - i + 1 >= best_count) {
+      best_count = j - i + 1;
+      best_start = i;
+    }
+  }
+  double height = sorted[best_start + best_count / 2];
+  std::vector<Eigen::Vector2d> top_xy;
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<double> layer;
+    top_xy.clear();
+    for (std::size_t k = 0; k < heights.size(); ++k) {
+      if (std::abs(heights[k] - height) <= options.top_layer_mm) {
+        layer.push_back(heights[k]);
+        top_xy.push_back(all_xy[k]);
+      }
+    }
+    height = Quantile(layer, 0.5);  // layer holds at least the guess itself
+  }
+  pose.height_mm = height;
+  pose.top_points = static_cast<int>(top_xy.size());
+  pose.top_rectangle = MinAreaRectangle(top_xy);
+  pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
+  pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
+                                                                     : pose.yaw_moments_deg;
+  Eigen::Vector2d centre = pose.top_rectangle.centre;
+  if (!options.centroid_from_rectangle) {
+    centre.setZero();
+    for (const auto& p : all_xy) centre += p;
+    centre /= static_cast<double>(all_xy.size());
+  }
+  pose.centroid = Eigen::Vector3d(centre.x(), centre.y(), height);
+  return pose;
+}
+
+namespace {
+
+bool InsideConvexPolygon(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
+  if (hull.size() < 3) return false;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    if (Cross(hull[i], hull[(i + 1) % hull.size()], point) < 0) return false;  // counter-clockwise
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
+                                                  std::vector<std::vector<int>> clusters,
+                                                  const ObjectPoseOptions& options, int* merges) {
+  std::stable_sort(clusters.begin(), clusters.end(),
+                   [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  int merged = 0;
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<ObjectPose> poses;
+    std::vector<std::vector<Eigen::Vector2d>> top_hulls;
+    for (const auto& cluster : clusters) {
+      poses.push_back(EstimateObjectPose(points_in_world, cluster, options));
+      std::vector<Eigen::Vector2d> top_xy;
+      for (int i : cluster) {
+        const Eigen::Vector3d& p = points_in_world[static_cast<std::size_t>(i)];
+        if (std::abs(p.z() - poses.back().height_mm) <= options.top_layer_mm) top_xy.push_back(p.head<2>());
+      }
+      top_hulls.push_back(ConvexHull(top_xy));
+    }
+    for (std::size_t small = clusters.size(); small-- > 1 && !changed;) {
+      for (std::size_t large = 0; large < small && !changed; ++large) {
+        if (std::abs(poses[small].height_mm - poses[large].height_mm) > options.top_layer_mm) continue;
+        if (!InsideConvexPolygon(top_hulls[large], poses[small].top_rectangle.centre)) continue;
+        clusters[large].insert(clusters[large].end(), clusters[small].begin(), clusters[small].end());
+        clusters.erase(clusters.begin() + static_cast<long>(small));
+        ++merged;
+        changed = true;
+      }
+    }
+  }
+  if (merges != nullptr) *merges = merged;
+  return clusters;
+}
+
+std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,
+                                            const std::vector<std::vector<int>>& clusters,
+                                            const ObjectPoseOptions& options) {
+  std::vector<ObjectPose> poses;
+  for (const auto& cluster : clusters) {
+    if (!cluster.empty()) poses.push_back(EstimateObjectPose(points_in_world, cluster, options));
+  }
+  std::stable_sort(poses.begin(), poses.end(), [](const ObjectPose& a, const ObjectPose& b) {
+    return a.height_mm > b.height_mm;
+  });
+  return poses;
+}
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,91 @@
+#pragma once
+// A part's pick pose from its cluster of world points (THESIS.md section 4, thesis 6.2.11):
+// the height of its top face above the table, the centre of the top face (where a gripper
+// goes), and its orientation in the table plane - from central moments (thesis,
+// phi = 0.5 atan2(2 mu11, mu20 - mu02)) and from the top face's minimum-area rectangle.
+// Pure geometry over Eigen: no I/O.
+
+#include <Eigen/Core>
+#include <string>
+#include <string_view>
+#include <optional>
+#include <vector>
+
+namespace hnnstereo::vision {
+
+enum class YawMethod {
+  kMinAreaRectangle,  ///< long side of the top face's minimum-area rectangle (default)
+  kCentralMoments,    ///< thesis: principal axis of the cluster's points in the table plane
+};
+std::string_view YawMethodName(YawMethod method);  ///< "rectangle" or "moments"
+std::optional<YawMethod> ParseYawMethod(std::string_view name);
+
+struct ObjectPoseOptions {
+  /// The top face: points within this distance (mm) below/above the top height. About twice the
+  /// depth error of one pixel of disparity in the default cell (2.7 mm).
+  double top_layer_mm = 5.0;
+  /// First guess of the top height: the densest slab of this many times top_layer_mm in Z (the
+  /// top face's outline and marks pile up at one height; side edges spread over all heights,
+  /// mismatches scatter); the height is then the median Z of the top layer around it.
+  double densest_slab_factor = 1.0;
+  /// Centroid: true = centre of the top face's minimum-area rectangle; false = the thesis's mean
+  /// of all the cluster's points (x, y), at the top height.
+  bool centroid_from_rectangle = true;
+  YawMethod yaw_method = YawMethod::kMinAreaRectangle;
+  std::string Check() const;
+};
+
+/// A rectangle in the table plane.
+struct Rectangle2D {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  double length = 0.0;   ///< long side (mm)
+  double width = 0.0;    ///< short side (mm)
+  double yaw_deg = 0.0;  ///< angle of the long side from +x towards +y, in (-90, 90]
+};
+
+struct ObjectPose {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  ///< top-face centre; z = height (mm)
+  double height_mm = 0.0;        ///< top face above the table
+  double yaw_deg = 0.0;          ///< by options.yaw_method, in (-90, 90]
+  double yaw_moments_deg = 0.0;  ///< thesis central moments, in (-90, 90]
+  Rectangle2D top_rectangle;     ///< minimum-area rectangle of the top face's points
+  int points = 0;                ///< points of the cluster
+  int top_points = 0;            ///< of which on the top face
+  std::vector<int> point_indices;  ///< into the input points
+};
+
+/// Orientation of the principal axis of `points` in (-90, 90] degrees:
+/// phi = 0.5 atan2(2 mu11, mu20 - mu02) (thesis 6.2.11). 0 for fewer than two points.
+double YawFromCentralMoments(const std::vector<Eigen::Vector2d>& points);
+
+/// Convex hull (Andrew's monotone chain), counter-clockwise, no collinear points.
+std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> points);
+
+/// Minimum-area enclosing rectangle (rotating calipers over the hull: one side of the optimal
+/// rectangle lies on a hull edge; Freeman & Shapira 1975). Empty input gives a zero rectangle.
+Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points);
+
+/// Maps an angle (degrees) to (-90, 90] (an axis, not a direction).
+double NormaliseAxisAngle(double angle_deg);
+
+/// The pose of one cluster (`indices` into `points_in_world`). Throws std::invalid_argument on
+/// bad options or an empty cluster.
+ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_world,
+                              const std::vector<int>& indices, const ObjectPoseOptions& options = {});
+
+/// Engraved marks and texture inside a large top face are matched, but can lie further from its
+/// outline than the clustering's reach and form islands. An island whose top height is within
+/// options.top_layer_mm of a larger cluster's and whose top-face centre lies inside that
+/// cluster's top-face hull joins it. Returns the merged clusters (largest first) and counts the
+/// merges in `merges` when given.
+std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
+                                                  std::vector<std::vector<int>> clusters,
+                                                  const ObjectPoseOptions& options = {},
+                                                  int* merges = nullptr);
+
+/// Poses of all clusters, tallest first (the thesis's pick order).
+std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,
+                                            const std::vector<std::vector<int>>& clusters,
+                                            const ObjectPoseOptions& options = {});
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,356 @@
+#include "vision/position_sensing.h"
+
+#include <algorithm>
+#include <chrono>
+#include <numbers>
+#include <opencv2/imgproc.hpp>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "calib/epipolar.h"
+#include "vision/correlation.h"
+#include "vision/triangulation.h"
+
+namespace hnnstereo::vision {
+namespace {
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+MatcherOptions PickCellMatcherOptions() {
+  MatcherOptions options;
+  options.features.detector = FeatureDetector::kCanny;
+  options.candidates.rectified = false;
+  options.candidates.max_epipolar_distance_px = 2.0;
+  options.candidates.z_range_mm = std::make_pair(-5.0, 200.0);
+  options.candidates.top_k = 8;
+  options.energy.support_radius_px = 8.0;
+  // The dusty table gives thousands of edge points that all lie at z = 0; the cap (kept spread
+  // over the image) bounds the all-pairs epipolar gating, which dominates the time: 8000
+  // features per image took 3.8 s of gating, 4000 take 0.8 s (seed 3, this machine).
+  options.features.max_features = 4000;
+  return options;
+}
+
+std::string PositionSensingOptions::Check() const {
+  if (std::string problem = matcher.Check(); !problem.empty()) return problem;
+  if (matcher.candidates.rectified) {
+    return "position sensing needs a calibrated, unrectified pair (candidates.rectified is set)";
+  }
+  if (!(min_edge_epipolar_angle_deg >= 0.0 && min_edge_epipolar_angle_deg < 90.0)) {
+    return "min_edge_epipolar_angle_deg must be in [0, 90)";
+  }
+  if (min_strong_points < 1) return "min_strong_points must be >= 1";
+  if (!(max_reprojection_error_px > 0.0)) {
+    std::ostringstream out;
+    out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
+    return out.str();
+  }
+  if (std::string problem = grid.Check(); !problem.empty()) return problem;
+  if (std::string problem = leader.Check(); !problem.empty()) return problem;
+  return pose.Check();
+}
+
+PositionSensingReport SensePositionsFromMatches(MatchReport match,
+                                                const calib::StereoCalibration& calibration,
+                                                const PositionSensingOptions& options,
+                                                const cv::Mat& left_grey) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  if (const std::string problem = calibration.Check(); !problem.empty()) {
+    throw std::invalid_argument("calibration: " + problem);
+  }
+  PositionSensingReport report;
+  report.match = std::move(match);
+  report.timing_ms.match = report.match.timing_ms.total;
+
+  // Linear triangulation from both P (thesis 6.2.9), then rejection.
+  auto start = std::chrono::steady_clock::now();
+  double residual_sum = 0.0;
+  cv::Mat gradient_x, gradient_y;
+  const bool test_edges = options.min_edge_epipolar_angle_deg > 0.0 && !left_grey.empty();
+  if (test_edges) {
+    cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
+    cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
+  }
+  const double min_sine = std::sin(options.min_edge_epipolar_angle_deg * std::numbers::pi / 180.0);
+  for (std::size_t m = 0; m < report.match.matches.size(); ++m) {
+    const StereoMatch& stereo_match = report.match.matches[m];
+    bool weak = false;
+    if (test_edges) {
+      // sin(angle between edge and epipolar line) = |gradient . line direction| / |gradient|;
+      // the left epipolar line of the right point is l1 = F^T x2 (H&Z 9.2).
+      const int u = std::clamp(static_cast<int>(std::lround(stereo_match.left.x())), 0, left_grey.cols - 1);
+      const int v = std::clamp(static_cast<int>(std::lround(stereo_match.left.y())), 0, left_grey.rows - 1);
+      const Eigen::Vector2d gradient(gradient_x.at<float>(v, u), gradient_y.at<float>(v, u));
+      const Eigen::Vector3d line =
+          calibration.F.transpose() * stereo_match.right.cast<double>().homogeneous();
+      const Eigen::Vector2d direction = Eigen::Vector2d(line.y(), -line.x()).normalized();
+      if (gradient.norm() > 0.0 && direction.allFinite() &&
+          std::abs(gradient.dot(direction)) < min_sine * gradient.norm()) {
+        weak = true;
+      }
+    }
+    const auto point = TriangulateLinear(calibration.P1, calibration.P2,
+                                         stereo_match.left.cast<double>(),
+                                         stereo_match.right.cast<double>());
+    if (!point) {
+      ++report.triangulation.degenerate;
+    } else if (!point->in_front) {
+      ++report.triangulation.behind_camera;
+    } else if (!(point->reprojection_error_px <= options.max_reprojection_error_px)) {
+      ++report.triangulation.large_residual;
+    } else {
+      report.points_in_world.push_back(point->point_in_world);
+      report.match_of_point.push_back(static_cast<int>(m));
+      report.reprojection_error_px.push_back(point->reprojection_error_px);
+      report.weak.push_back(weak);
+      if (weak) ++report.triangulation.edge_along_epipolar;
+      residual_sum += point->reprojection_error_px;
+    }
+  }
+  report.triangulation.accepted = static_cast<int>(report.points_in_world.size());
+  if (report.triangulation.accepted > 0) {
+    report.triangulation.mean_residual_px = residual_sum / report.triangulation.accepted;
+  }
+  report.timing_ms.triangulate = MillisecondsSince(start);
+
+  start = std::chrono::steady_clock::now();
+  report.clustering = options.clustering == ClusteringMethod::kGrid
+                          ? ClusterOnGrid(report.points_in_world, options.grid)
+                          : ClusterByHeightLeader(report.points_in_world, options.leader);
+  report.timing_ms.cluster = MillisecondsSince(start);
+
+  start = std::chrono::steady_clock::now();
+  ObjectPoseOptions pose_options = options.pose;
+  if (options.clustering == ClusteringMethod::kThesisLeader) {
+    // The thesis: centroid = mean of the cluster, yaw from central moments.
+    pose_options.centroid_from_rectangle = false;
+    pose_options.yaw_method = YawMethod::kCentralMoments;
+  }
+  // Poses from the strong points only (weak ones joined the clustering).
+  for (auto& cluster : report.clustering.clusters) {
+    std::vector<int> strong;
+    for (int i : cluster) {
+      if (!report.weak[static_cast<std::size_t>(i)]) strong.push_back(i);
+    }
+    if (static_cast<int>(strong.size()) >= std::min<int>(10, static_cast<int>(cluster.size()))) {
+      for (int i : cluster) {
+        if (report.weak[static_cast<std::size_t>(i)]) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
+      }
+      cluster = std::move(strong);
+    }
+  }
+  if (options.clustering == ClusteringMethod::kGrid && options.merge_top_face_islands) {
+    report.clustering.clusters = MergeTopFaceIslands(
+        report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges);
+    std::fill(report.clustering.labels.begin(), report.clustering.labels.end(), -1);
+    for (std::size_t c = 0; c < report.clustering.clusters.size(); ++c) {
+      for (int i : report.clustering.clusters[c]) {
+        report.clustering.labels[static_cast<std::size_t>(i)] = static_cast<int>(c);
+      }
+    }
+  }
+  std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
+    const bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
+    if (small) {
+      report.clustering.n_in_small_clusters += static_cast<int>(cluster.size());
+      for (int i : cluster) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
+    }
+    return small;
+  });
+  report.objects =
+      EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
+  report.timing_ms.pose = MillisecondsSince(start);
+  report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
+                           report.timing_ms.cluster + report.timing_ms.pose;
+  return report;
+}
+
+PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                     const calib::StereoCalibration& calibration,
+                                     const PositionSensingOptions& options, ocl::Runtime* runtime) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  if (calibration.rectified) {
+    throw std::invalid_argument("position sensing needs the cell's CAL.yml (world frame with the "
+                                "table at z = 0), not a rectified calib.txt");
+  }
+  MatchReport match = MatchStereo(left_grey, right_grey, &calibration, options.matcher, runtime);
+  return SensePositionsFromMatches(std::move(match), calibration, options, left_grey);
+}
+
+nlohmann::json ObjectsJson(const PositionSensingReport& report,
+                           const PositionSensingOptions& options) {
+  nlohmann::json objects = nlohmann::json::array();
+  int id = 1;
+  for (const ObjectPose& pose : report.objects) {
+    objects.push_back(
+        {{"id", id++},
+         {"centroid", {pose.centroid.x(), pose.centroid.y(), pose.centroid.z()}},
+         {"height", pose.height_mm},
+         {"yaw_deg", pose.yaw_deg},
+         {"points", pose.points},
+         {"top_points", pose.top_points},
+         {"yaw_moments_deg", pose.yaw_moments_deg},
+         {"top_rectangle",
+          {{"centre", {pose.top_rectangle.centre.x(), pose.top_rectangle.centre.y()}},
+           {"length", pose.top_rectangle.length},
+           {"width", pose.top_rectangle.width},
+           {"yaw_deg", pose.top_rectangle.yaw_deg}}}});
+  }
+  const auto& t = report.triangulation;
+  return {{"units", "mm"},
+          {"objects", objects},
+          {"clustering", ClusteringMethodName(options.clustering)},
+          {"yaw_method", YawMethodName(options.clustering == ClusteringMethod::kGrid
+                                           ? options.pose.yaw_method
+                                           : YawMethod::kCentralMoments)},
+          {"matches", report.match.matches.size()},
+          {"engine", report.match.solve.engine},
+          {"triangulation",
+           {{"accepted", t.accepted},
+            {"behind_camera", t.behind_camera},
+            {"large_residual", t.large_residual},
+            {"degenerate", t.degenerate},
+            {"edge_along_epipolar", t.edge_along_epipolar},
+            {"mean_residual_px", t.mean_residual_px},
+            {"max_residual_px", options.max_reprojection_error_px}}},
+          {"clustered_points",
+           {{"outside_height_window", report.clustering.n_outside_height_window},
+            {"in_small_clusters", report.clustering.n_in_small_clusters},
+            {"island_merges", report.island_merges}}},
+          {"timing_ms",
+           {{"match", report.timing_ms.match},
+            {"triangulate", report.timing_ms.triangulate},
+            {"cluster", report.timing_ms.cluster},
+            {"pose", report.timing_ms.pose},
+            {"total", report.timing_ms.total}}}};
+}
+
+TruthComparison CompareWithTruth(const std::vector<ObjectPose>& detected,
+                                 const std::vector<SceneObject>& truth,
+                                 double max_pairing_distance_mm) {
+  struct Candidate {
+    double distance;
+    std::size_t truth_index, detected_index;
+  };
+  std::vector<Candidate> candidates;
+  for (std::size_t t = 0; t < truth.size(); ++t) {
+    for (std::size_t d = 0; d < detected.size(); ++d) {
+      const double distance = (detected[d].centroid.head<2>() - truth[t].centre_mm).norm();
+      if (distance <= max_pairing_distance_mm) candidates.push_back({distance, t, d});
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  TruthComparison comparison;
+  comparison.pairs.resize(truth.size());
+  std::vector<bool> detection_used(detected.size(), false);
+  for (std::size_t t = 0; t < truth.size(); ++t) comparison.pairs[t].truth_index = static_cast<int>(t);
+  for (const Candidate& candidate : candidates) {
+    TruthPairing& pair = comparison.pairs[candidate.truth_index];
+    if (pair.detected_index >= 0 || detection_used[candidate.detected_index]) continue;
+    detection_used[candidate.detected_index] = true;
+    const ObjectPose& pose = detected[candidate.detected_index];
+    const SceneObject& object = truth[candidate.truth_index];
+    pair.detected_index = static_cast<int>(candidate.detected_index);
+    pair.centroid_error_mm = candidate.distance;
+    pair.height_error_mm = pose.height_mm - object.height_mm();
+    pair.yaw_defined = object.shape == SceneObject::Shape::kBox;
+    if (pair.yaw_defined) {
+      pair.yaw_error_deg = std::abs(NormaliseAxisAngle(pose.yaw_deg - object.yaw_deg));
+    }
+    ++comparison.detected;
+  }
+  for (bool used : detection_used) {
+    if (!used) ++comparison.false_objects;
+  }
+  return comparison;
+}
+
+std::string ProbeOptions::Check() const {
+  std::ostringstream out;
+  if (zncc_window < 3 || zncc_window > 15 || zncc_window % 2 == 0) {
+    out << "ProbeOptions.zncc_window must be odd in [3, 15] (is " << zncc_window << ")";
+  } else if (!(z_range_mm.first < z_range_mm.second)) {
+    out << "ProbeOptions.z_range_mm needs min < max (is " << z_range_mm.first << ", "
+        << z_range_mm.second << ")";
+  }
+  return out.str();
+}
+
+ProbeReport ProbePoint(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                       const calib::StereoCalibration& calibration,
+                       const Eigen::Vector2d& left_point, const ProbeOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  if (!(left_point.x() >= 0 && left_point.y() >= 0 && left_point.x() <= left_grey.cols - 1 &&
+        left_point.y() <= left_grey.rows - 1)) {
+    std::ostringstream out;
+    out << "point (" << left_point.x() << ", " << left_point.y() << ") is outside the "
+        << left_grey.cols << "x" << left_grey.rows << " left image";
+    throw std::invalid_argument(out.str());
+  }
+  ProbeReport report;
+  report.left_point = left_point;
+  // The left ray X(t) = C1 + t d, cut to the height range, projected into the right image.
+  const Eigen::Matrix3d M1 = calibration.P1.leftCols<3>();
+  const Eigen::Vector3d direction = M1.inverse() * left_point.homogeneous();
+  const Eigen::Vector3d C1 = calib::CameraCentre(calibration.P1);
+  if (std::abs(direction.z()) < 1e-12) throw std::invalid_argument("the left ray is parallel to the table");
+  auto at_height = [&](double z) {
+    const Eigen::Vector3d X = C1 + ((z - C1.z()) / direction.z()) * direction;
+    return Eigen::Vector2d((calibration.P2 * X.homogeneous()).hnormalized());
+  };
+  report.search_start = at_height(options.z_range_mm.first);
+  report.search_end = at_height(options.z_range_mm.second);
+  const ZnccMatcher zncc(left_grey, right_grey, options.zncc_window);
+  const Eigen::Vector2d span = report.search_end - report.search_start;
+  const int steps = std::max(1, static_cast<int>(std::ceil(span.norm())));
+  std::vector<double> scores;
+  std::vector<Eigen::Vector2d> positions;
+  for (int k = 0; k <= steps; ++k) {
+    const Eigen::Vector2d x = report.search_start + (static_cast<double>(k) / steps) * span;
+    if (x.x() < 0 || x.y() < 0 || x.x() > right_grey.cols - 1 || x.y() > right_grey.rows - 1) continue;
+    positions.push_back(x);
+    scores.push_back(zncc(left_point.cast<float>(), x.cast<float>()));
+  }
+  report.positions_tested = static_cast<int>(positions.size());
+  if (positions.empty()) return report;
+  const auto best = static_cast<std::size_t>(
+      std::max_element(scores.begin(), scores.end()) - scores.begin());
+  report.zncc = scores[best];
+  for (std::size_t k = 0; k < scores.size(); ++k) {
+    const auto distance = static_cast<int>(k > best ? k - best : best - k);
+    if (distance > options.zncc_window) report.second_zncc = std::max(report.second_zncc, scores[k]);
+  }
+  report.found = report.zncc > 0.0;
+  if (!report.found) return report;
+  // Sub-pixel: the vertex of the parabola through the peak and its neighbours.
+  double offset = 0.0;
+  if (best > 0 && best + 1 < scores.size()) {
+    const double a = scores[best - 1], b = scores[best], c = scores[best + 1];
+    const double curvature = a - 2 * b + c;
+    if (curvature < 0) offset = std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+  }
+  const Eigen::Vector2d step = span / steps;
+  report.right_point = positions[best] + offset * step;
+  report.epipolar_distance_px =
+      calib::EpipolarDistancePx(calibration.F, left_point, report.right_point);
+  if (const auto point = TriangulateLinear(calibration.P1, calibration.P2, left_point,
+                                           report.right_point)) {
+    report.point_in_world = point->point_in_world;
+    report.reprojection_error_px = point->reprojection_error_px;
+  }
+  return report;
+}
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,144 @@
+#pragma once
+// The pick pipeline (THESIS.md section 4): stereo matches -> linear triangulation from both P
+// -> rejection (behind a camera, large reprojection residual) -> clustering -> part poses,
+// tallest first. One call shared by `pick`, `demo` and the acceptance harness.
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "calib/calibration.h"
+#include "host/opencl_runtime.h"
+#include "vision/clustering.h"
+#include "vision/object_pose.h"
+#include "vision/scene_render.h"
+#include "vision/stereo_matcher.h"
+
+namespace hnnstereo::vision {
+
+/// Matcher settings measured to work in the pick cell: calibrated, unrectified pair gated by F
+/// (2 px), by the height of the triangulated candidate (-5 to 200 mm above the table), the 8
+/// best-correlated candidates per left feature, Canny features.
+MatcherOptions PickCellMatcherOptions();
+
+struct PositionSensingOptions {
+  MatcherOptions matcher = PickCellMatcherOptions();
+  /// Points whose RMS reprojection residual (px, both images) exceeds this are rejected: the two
+  /// rays miss each other, so the match is wrong (or F is).
+  double max_reprojection_error_px = 2.0;
+  /// Points on edges within this angle (degrees) of their epipolar line are weak: along such an
+  /// edge every position correlates alike, so the depth is a guess (their x, y are nearly
+  /// right). They help the clustering join a part's edges but never decide its height or pose.
+  /// In the thesis cell the baseline runs along world y, so part edges along y are weak.
+  /// 0 makes every point strong.
+  double min_edge_epipolar_angle_deg = 20.0;
+  ClusteringMethod clustering = ClusteringMethod::kGrid;
+  GridClusteringOptions grid;
+  LeaderClusteringOptions leader;
+  ObjectPoseOptions pose;
+  /// Grid clustering: join islands of points inside a larger part's top face at its height
+  /// (engraved marks far from the outline); see MergeTopFaceIslands.
+  bool merge_top_face_islands = true;
+  /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
+  /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had
+  /// 20-50 strong points, true ones well over 100.
+  int min_strong_points = 60;
+  std::string Check() const;
+};
+
+/// What triangulation kept and why it rejected the rest.
+struct TriangulationCounts {
+  int accepted = 0;
+  int behind_camera = 0;      ///< the point is behind either camera
+  int large_residual = 0;     ///< reprojection residual above the limit
+  int degenerate = 0;         ///< parallel rays
+  int edge_along_epipolar = 0;  ///< accepted but weak: edge nearly along its epipolar line
+  double mean_residual_px = 0.0;  ///< over the accepted points
+};
+
+struct PositionSensingTiming {
+  double match = 0, triangulate = 0, cluster = 0, pose = 0, total = 0;  ///< ms
+};
+
+struct PositionSensingReport {
+  MatchReport match;
+  std::vector<Eigen::Vector3d> points_in_world;  ///< accepted triangulated points (mm)
+  std::vector<int> match_of_point;               ///< index into match.matches per point
+  std::vector<double> reprojection_error_px;     ///< per point
+  std::vector<bool> weak;                        ///< per point: edge along the epipolar line
+  TriangulationCounts triangulation;
+  ClusteringReport clustering;                   ///< labels index points_in_world
+  int island_merges = 0;                         ///< top-face islands joined to their part
+  std::vector<ObjectPose> objects;               ///< tallest first
+  PositionSensingTiming timing_ms;
+};
+
+/// Matches, triangulates, clusters and estimates poses. `calibration` is required (P1, P2, F).
+/// Throws std::invalid_argument on bad options / calibration, std::runtime_error when matching
+/// fails (no features...).
+PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                     const calib::StereoCalibration& calibration,
+                                     const PositionSensingOptions& options, ocl::Runtime* runtime);
+
+/// The same pipeline after matching (tests, and matches from elsewhere). `left_grey` (the left
+/// image) is needed for the edge-angle test; empty skips it.
+PositionSensingReport SensePositionsFromMatches(MatchReport match,
+                                                const calib::StereoCalibration& calibration,
+                                                const PositionSensingOptions& options,
+                                                const cv::Mat& left_grey = cv::Mat());
+
+/// OBJECTS.json (ARCHITECTURE.md): units, objects {id, centroid, height, yaw_deg, points} tallest
+/// first, plus per object yaw_moments_deg and top_rectangle, and a summary of the run.
+nlohmann::json ObjectsJson(const PositionSensingReport& report, const PositionSensingOptions& options);
+
+/// Detected parts against the renderer's truth: greedy nearest pairs in the table plane.
+struct TruthPairing {
+  int truth_index = -1;
+  int detected_index = -1;           ///< -1 when missed
+  double centroid_error_mm = 0.0;    ///< in the table plane
+  double height_error_mm = 0.0;      ///< detected - true
+  double yaw_error_deg = 0.0;        ///< boxes: |difference| modulo 180; cylinders: 0
+  bool yaw_defined = false;          ///< boxes only
+};
+struct TruthComparison {
+  std::vector<TruthPairing> pairs;   ///< one per true part, in truth order
+  int detected = 0;                  ///< true parts found
+  int false_objects = 0;             ///< detections paired with no true part
+};
+TruthComparison CompareWithTruth(const std::vector<ObjectPose>& detected,
+                                 const std::vector<SceneObject>& truth,
+                                 double max_pairing_distance_mm = 25.0);
+
+/// The thesis's selective point matching (debug tool): one left point, its epipolar line in the
+/// right image cut to the heights z_range_mm, a ZNCC search along it, the best match refined to
+/// sub-pixel by a parabola, then triangulated.
+struct ProbeOptions {
+  int zncc_window = 7;                                ///< odd window side (thesis 7)
+  std::pair<double, double> z_range_mm{-5.0, 200.0};  ///< heights searched (mm)
+  std::string Check() const;
+};
+
+struct ProbeReport {
+  Eigen::Vector2d left_point = Eigen::Vector2d::Zero();
+  Eigen::Vector2d search_start = Eigen::Vector2d::Zero();  ///< right image, at z_range.first
+  Eigen::Vector2d search_end = Eigen::Vector2d::Zero();    ///< right image, at z_range.second
+  int positions_tested = 0;          ///< 1-px steps inside the right image
+  bool found = false;                ///< a positive correlation peak exists
+  Eigen::Vector2d right_point = Eigen::Vector2d::Zero();
+  double zncc = 0.0;                 ///< at the best position
+  double second_zncc = -1.0;         ///< best elsewhere on the line (beyond one window)
+  double epipolar_distance_px = 0.0; ///< of right_point from F x_left
+  std::optional<Eigen::Vector3d> point_in_world;
+  double reprojection_error_px = 0.0;
+};
+
+/// Throws std::invalid_argument when the point is outside the left image or options are bad.
+ProbeReport ProbePoint(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                       const calib::StereoCalibration& calibration,
+                       const Eigen::Vector2d& left_point, const ProbeOptions& options = {});
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,127 @@
+#pragma once
+// The synthetic pick cell (THESIS.md section 4, ARCHITECTURE.md "render DIR"): the thesis's two
+// non-coplanar cameras about 720 mm above a dark, dusty, textured table, metal-like boxes and
+// cylinders of varied size, height and yaw, ray cast with diffuse and specular shading, shadows,
+// slight blur and sensor noise; plus the circle calibration target rendered at several heights
+// (calib/circle_target_render.h) so that the cameras can be calibrated from images instead of
+// being taken from the truth. Seeded: the same options give the same pixels.
+//
+// World frame = the table: z = 0 on the table, z up, millimetres. Textures are functions of the
+// surface point in the world (or the object's frame), so both cameras see the same marks.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "calib/calibration.h"
+#include "calib/circle_calibration.h"
+
+namespace hnnstereo::vision {
+
+/// One part on the table.
+struct SceneObject {
+  enum class Shape { kBox, kCylinder };
+  Shape shape = Shape::kBox;
+  Eigen::Vector2d centre_mm = Eigen::Vector2d::Zero();  ///< centre of the footprint (table plane)
+  /// Box: length along its own x (>= width), width, height. Cylinder: diameter, diameter, height.
+  Eigen::Vector3d size_mm = Eigen::Vector3d(40, 30, 20);
+  /// Box: angle of its length axis from world +x towards +y, in (-90, 90]. Cylinder: 0.
+  double yaw_deg = 0.0;
+  double albedo = 0.6;                 ///< grey albedo of the metal in [0, 1]
+  std::uint64_t texture_seed = 1;      ///< seeds the brushing and the engraved marks
+
+  double height_mm() const { return size_mm.z(); }
+  std::string ShapeName() const { return shape == Shape::kBox ? "box" : "cylinder"; }
+  /// The footprint outline (counter-clockwise) in the table plane; 4 corners or a 32-gon.
+  std::vector<Eigen::Vector2d> Footprint() const;
+};
+
+/// The cameras of the default cell: thesis centres C1 = (86.4, 479.7, 719.9) mm and
+/// C2 = (81.1, 291.5, 711.9) mm (188 mm apart, 8 mm height difference: not coplanar), both
+/// looking at the work centre with world +x to the right in the image.
+struct PickCellCameraOptions {
+  int image_width = 640;                                     ///< px
+  int image_height = 480;                                    ///< px
+  double focal_px = 1100.0;                                  ///< left camera focal length (px)
+  Eigen::Vector3d left_centre_mm{86.4, 479.7, 719.9};        ///< thesis C1
+  Eigen::Vector3d right_centre_mm{81.1, 291.5, 711.9};       ///< thesis C2
+  Eigen::Vector3d work_centre_mm{100.0, 385.0, 0.0};         ///< where both cameras look
+  std::string Check() const;
+};
+
+/// How a scene is drawn.
+struct SceneRenderOptions {
+  std::uint64_t seed = 1;               ///< everything random derives from this
+  int num_objects = 0;                  ///< parts on the table; 0 = drawn from [1, 9] by the seed
+  PickCellCameraOptions cameras;
+  double work_half_width_mm = 130.0;    ///< parts lie within work_centre +- this along x (mm)
+  double work_half_depth_mm = 100.0;    ///< ... and +- this along y (mm)
+  double min_height_mm = 10.0;          ///< part heights drawn uniformly in [min, max] (mm)
+  double max_height_mm = 150.0;
+  double min_side_mm = 25.0;            ///< box sides / cylinder diameters in [min, max] (mm)
+  double max_side_mm = 75.0;
+  double min_aspect = 1.2;              ///< box length / width >= this: the yaw is defined
+  double cylinder_fraction = 0.25;      ///< probability that a part is a cylinder
+  /// Smallest gap between footprints (mm); 0 lets parts touch. 15 mm: the default grid
+  /// clustering keeps parts of similar height apart when they stand more than 12.7 mm apart.
+  double min_gap_mm = 15.0;
+  /// Every part's top face must be seen unoccluded by both cameras at this fraction of samples.
+  double min_top_visibility = 0.9;
+  int image_margin_px = 8;              ///< every part lies this far inside both images
+  int supersampling = 2;                ///< rays per pixel along each axis (anti-aliasing)
+  double blur_sigma_px = 0.6;           ///< Gaussian blur (optics), px
+  double noise_sigma_grey = 2.0;        ///< additive Gaussian sensor noise, grey levels
+  double table_albedo = 0.16;           ///< mean albedo of the dark table
+  // The calibration target (target/): a rows x cols circle grid at several heights.
+  calib::CircleGridGeometry target_grid{4, 5, 35.0, 8.0};
+  /// Heights of the target placements (mm); each also gets its own offset and yaw.
+  std::vector<double> target_heights_mm{0.0, 40.0, 80.0, 120.0, 150.0};
+  std::string Check() const;
+};
+
+/// A rendered scene with its truth.
+struct RenderedScene {
+  cv::Mat left, right;                    ///< 8-bit grey
+  calib::StereoCalibration cameras;       ///< the true cameras (P1, P2, F, C1, C2)
+  std::vector<SceneObject> objects;       ///< tallest first
+  std::uint64_t seed = 0;
+};
+
+/// The true cameras of the cell (P = K [R | -R C]).
+calib::StereoCalibration PickCellCameras(const PickCellCameraOptions& options);
+
+/// Draws the parts (seeded), then ray casts both images. Throws std::invalid_argument on bad
+/// options or when the parts cannot be placed (too many for the work area).
+RenderedScene RenderScene(const SceneRenderOptions& options);
+
+/// Renders one image of `objects` through `P` (exposed for tests: same world, any camera).
+cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObject>& objects,
+                   const SceneRenderOptions& options, std::uint64_t noise_seed);
+
+/// The circle target at options.target_heights_mm seen by both cameras: images and target.yml
+/// content (image names "left_<h>.png", "right_<h>.png"). Throws when a placement is not fully
+/// visible in both images.
+struct RenderedTarget {
+  calib::TargetDescription description;
+  std::vector<cv::Mat> left_images, right_images;
+};
+RenderedTarget RenderTargetPlacements(const calib::StereoCalibration& cameras,
+                                      const SceneRenderOptions& options);
+
+/// truth.json: OBJECTS.json's schema (units, objects {id, centroid = top-face centre, height,
+/// yaw_deg, points = 0}) plus `shape` and `size`, and the seed.
+nlohmann::json TruthJson(const RenderedScene& scene);
+
+/// Reads the objects of a truth.json back (the renderer's parts). Throws std::runtime_error.
+std::vector<SceneObject> LoadTruthObjects(const std::string& truth_json_path);
+
+/// Writes a render DIR: left.png, right.png, calib.yml (true cameras), truth.json and target/
+/// (images + target.yml). Everything is rendered before anything is written; every file is
+/// written atomically. Throws std::runtime_error naming the path on failure.
+void WriteSceneDirectory(const RenderedScene& scene, const RenderedTarget& target,
+                         const std::string& dir);
+
+}  // namespace hnnstereo::vision
