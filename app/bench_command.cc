@@ -97,6 +97,14 @@ void RunBench(BenchArgs& args) {
   }
   std::printf("StereoSGBM (same pair, %d disparities): %.1f ms\n",
               json["stereo_sgbm"]["num_disparities"].get<int>(), json["stereo_sgbm"]["ms"].get<double>());
+  if (json.contains("batch")) {
+    const auto& b = json["batch"];
+    std::printf("batch of %d networks (%lld neurons): one launch per step %.1f ms, one network at "
+                "a time %.1f ms (%.2fx)\n",
+                b["networks"].get<int>(), b["neurons"].get<long long>(),
+                b["solve_batch_ms"].get<double>(), b["solve_one_by_one_ms"].get<double>(),
+                b["speedup"].get<double>());
+  }
   if (json.contains("dense_comparison")) {
     const auto& d = json["dense_comparison"];
     std::printf("dense %s: opencl %.1fx faster than thesis (weights + solve: %.1f vs %.1f ms); "
@@ -140,6 +148,9 @@ void AddBenchCommand(CLI::App& app) {
   cmd->add_option("--warmup", args->bench.warmup, "Untimed runs per case first")->capture_default_str();
   cmd->add_option("--thesis-max-neurons", args->bench.thesis_max_neurons,
                   "Run the thesis engine only up to this many neurons")
+      ->capture_default_str();
+  cmd->add_option("--batch-networks", args->bench.batch_networks,
+                  "Batch case: strips of the pair solved as independent networks (0 = none)")
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");
   args->flags.AddTo(cmd);

@@ -245,8 +245,8 @@ class DeviceNetwork {
     SetArgs(neuron_field_, static_cast<cl_int>(n), neuron_row_, neuron_column_, row_offsets_,
             neighbour_offsets_, neighbours_, weight_offsets_, weights_, bias_, row_sums_,
             column_sums_, static_cast<cl_float>(2.0 * energy.B),
-            static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0), V_, field_,
-            energy_terms_);
+            static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0), network_of_neuron_,
+            active_, V_, field_, energy_terms_);
     neuron_euler_ = cl::Kernel(program, "neuron_euler");
     SetArgs(neuron_euler_, static_cast<cl_int>(n), network_of_neuron_, active_,
             static_cast<cl_float>(dynamics.time_step), static_cast<cl_float>(1.0 / dynamics.tau),

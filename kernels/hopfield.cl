@@ -163,11 +163,15 @@ __kernel void neuron_field(const int n_neurons,
                            __global const float* row_sums,
                            __global const float* column_sums,
                            const float two_B, const float two_C,
+                           __global const int* network_of_neuron,
+                           __global const int* active,
                            __global const float* V,
                            __global float* field,
                            __global float* energy_terms) {
   const int a = get_global_id(0);
   if (a >= n_neurons) return;
+  // A frozen (converged) network keeps its state, field and energy terms: skip its neurons.
+  if (!active[network_of_neuron[a]]) return;
   const int i = neuron_row[a];
   const float va = V[a];
   long position = weight_offsets[a];

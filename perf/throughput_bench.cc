@@ -7,6 +7,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
+#include "host/opencl_engine.h"
+#include "vision/candidates.h"
+#include "vision/correlation.h"
+#include "vision/features.h"
 #include "vision/image.h"
 
 namespace hnnstereo::perf {
@@ -173,6 +177,58 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
     }
   }
   json["runs"] = runs;
+
+  // Many independent networks per launch: horizontal strips of the pair, one network each.
+  if (options.batch_networks > 0 && runtime != nullptr) {
+    hnn::ProblemBatch batch;
+    const int strip = left.grey.rows / options.batch_networks;
+    vision::MatcherOptions matcher = options.matcher;
+    matcher.features.max_features = options.batch_features;
+    matcher.candidates.rectified = true;
+    matcher.candidates.max_disparity = options.max_disparity;
+    matcher.candidates.dense = false;
+    for (int b = 0; b < options.batch_networks && strip > 2 * options.matcher.zncc_window; ++b) {
+      const cv::Rect band(0, b * strip, left.grey.cols, strip);
+      const cv::Mat l = left.grey(band).clone(), r = right.grey(band).clone();
+      const auto lf = vision::DetectFeatures(l, matcher.features);
+      const auto rf = vision::DetectFeatures(r, matcher.features);
+      if (lf.points.empty() || rf.points.empty()) continue;
+      const vision::ZnccMatcher zncc(l, r, matcher.zncc_window);
+      auto problem = vision::BuildCandidates(lf.points, rf.points, zncc, nullptr, matcher.candidates).problem;
+      if (!problem.candidates.empty()) batch.push_back(std::move(problem));
+    }
+    if (!batch.empty()) {
+      hnn::OpenClEngine engine(*runtime);
+      std::vector<double> together_ms, apart_ms;
+      long long neurons = 0, connections = 0;
+      for (int r = 0; r < options.warmup + options.repeats; ++r) {
+        auto start = std::chrono::steady_clock::now();
+        const auto reports = engine.SolveBatch(batch, matcher.energy, matcher.dynamics,
+                                               matcher.memory_budget_bytes);
+        const double together =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        start = std::chrono::steady_clock::now();
+        for (const auto& problem : batch) {
+          engine.Solve(problem, matcher.energy, matcher.dynamics, matcher.memory_budget_bytes);
+        }
+        const double apart =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        if (r >= options.warmup) {
+          together_ms.push_back(together);
+          apart_ms.push_back(apart);
+        }
+        neurons = connections = 0;
+        for (const auto& report : reports) {
+          neurons += report.n_neurons;
+          connections += report.n_connections;
+        }
+      }
+      json["batch"] = {{"networks", batch.size()}, {"neurons", neurons}, {"connections", connections},
+                       {"solve_batch_ms", Median(together_ms)},
+                       {"solve_one_by_one_ms", Median(apart_ms)},
+                       {"speedup", Median(together_ms) > 0 ? Median(apart_ms) / Median(together_ms) : 0.0}};
+    }
+  }
 
   // OpenCV StereoSGBM on the same pair, same disparity range, in the same run.
   {

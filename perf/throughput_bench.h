@@ -28,6 +28,10 @@ struct ThroughputBenchOptions {
   /// Update limit of the thesis engine, in sweeps (x neurons): large enough that it stops by
   /// its own |dE| rule (the thesis's 20,000 updates were 100 sweeps of its 13 x 15 network).
   int thesis_max_sweeps = 200;
+  /// Batch case: the pair cut into this many horizontal strips, one network each, solved by the
+  /// opencl engine in one launch per step (SolveBatch) and one after another (Solve); 0 = none.
+  int batch_networks = 8;
+  int batch_features = 600;      ///< --max-features per strip image
   int repeats = 5;               ///< timed runs per case (median reported)
   int warmup = 1;                ///< untimed runs first (PoCL compiles per local size)
   vision::MatcherOptions matcher;  ///< base options (features, gating, energy, dynamics)

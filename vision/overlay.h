@@ -12,7 +12,7 @@ namespace hnnstereo::vision {
 /// disparity (blue near zero, red at the largest) and joined by a line for every `line_every`-th
 /// match.
 cv::Mat DrawMatchOverlay(const cv::Mat& left, const cv::Mat& right, const MatchReport& report,
-                         int line_every = 25);
+                         int line_every = 60);
 
 /// Writes a PNG atomically; throws std::runtime_error naming the path on failure.
 void WritePngAtomically(const std::string& path, const cv::Mat& image);
