@@ -124,8 +124,8 @@ void AddBenchCommand(CLI::App& app) {
   args->bench.left = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/im2.png";
   args->bench.right = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/im6.png";
   args->bench.ground_truth = HNNSTEREO_DATA_DIR "/middlebury2003_teddy/disp2.png";
-  CLI::App* cmd = app.add_subcommand(
-      "bench",
+  CLI::App* cmd = app.add_subcommand("bench", "Throughput of matching -> BENCH.json");
+  cmd->footer(
       "Throughput of matching: engines x problem sizes on a rectified pair (default: the "
       "vendored Middlebury Teddy), medians of warmed-up repeats, with OpenCV StereoSGBM timed "
       "on the same pair in the same run. Progress on stderr, a table on stdout, JSON in --out.");

@@ -124,8 +124,8 @@ void RunMatch(MatchArgs& args) {
 void AddMatchCommand(CLI::App& app) {
   auto args = std::make_shared<MatchArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "match",
-      "Match edge features of a stereo pair with the Hopfield network.\n"
+      "match", "Match edge features of a stereo pair with the Hopfield network -> MATCHES.csv");
+  cmd->footer(
       "Example (rectified Middlebury pair):\n"
       "  hnnstereo match --left im2.png --right im6.png --rectified --max-disparity 64 \\\n"
       "      --out matches.csv --report report.json --overlay overlay.png\n"
@@ -136,7 +136,8 @@ void AddMatchCommand(CLI::App& app) {
   auto* calib_opt = cmd->add_option(
       "--calib", args->calib,
       "Calibration: CAL.yml (P1, P2, F) or a Middlebury calib.txt. Without --calib and "
-      "--rectified, F is estimated from confident correlation matches (8-point + RANSAC)");
+      "--rectified, F is estimated from ORB matches (normalised 8-point + RANSAC) and used "
+      "for gating and the soft epipolar term");
   auto* rect_opt = cmd->add_flag("--rectified", args->rectified,
                                  "The pair is rectified: epipolar lines are image rows");
   calib_opt->excludes(rect_opt);
