@@ -54,9 +54,13 @@ struct GridClusteringOptions {
   /// height in the default cell), so taller cells keep a noisy edge chain in one piece.
   double height_cell_mm = 8.0;
   int min_points_per_cell = 1;   ///< sparser cells are ignored (isolated mismatches)
-  /// Smaller components are noise (mismatches, occluding contours). The smallest default part
-  /// (25 mm, 10 mm tall) gives well over 100 matched points.
-  int min_points = 50;
+  /// Smaller components are noise (mismatches, occluding contours). Kept low: a top face whose
+  /// sides run along the epipolar lines (few, weak matches there) falls apart into its two
+  /// strong edges and its marks, 20-40 points each (seed 108); position sensing joins such
+  /// fragments at one height (MergeTopFaceIslands) and only then drops parts under
+  /// PositionSensingOptions::min_strong_points. The smallest default part (25 mm, 10 mm tall)
+  /// gives well over 100 matched points.
+  int min_points = 15;
   std::string Check() const;
 };
 

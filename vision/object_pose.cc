@@ -1,7 +1,9 @@
 #include "vision/object_pose.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
@@ -37,6 +39,13 @@ std::string ObjectPoseOptions::Check() const {
   std::ostringstream out;
   if (!(top_layer_mm > 0.0)) {
     out << "ObjectPoseOptions.top_layer_mm must be positive (is " << top_layer_mm << ")";
+  } else if (!(max_circle_residual >= 0.0 && max_circle_residual < 1.0)) {
+    out << "ObjectPoseOptions.max_circle_residual must be in [0, 1) (is " << max_circle_residual
+        << ")";
+  } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
+    out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
+  } else if (!(max_top_face_gap_mm >= 0.0)) {
+    out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -85,6 +94,38 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> points) {
   }
   hull.resize(k - 1);
   return hull;
+}
+
+std::optional<Circle2D> FitCircle(const std::vector<Eigen::Vector2d>& points) {
+  if (points.size() < 3) return std::nullopt;
+  // x^2 + y^2 + D x + E y + F = 0 in least squares, about the mean (conditioning).
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (const auto& p : points) {
+    const Eigen::Vector2d d = p - mean;
+    const Eigen::Vector3d row(d.x(), d.y(), 1.0);
+    normal += row * row.transpose();
+    rhs -= row * d.squaredNorm();
+  }
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
+  if (lu.rank() < 3) return std::nullopt;
+  const Eigen::Vector3d def = lu.solve(rhs);
+  Circle2D circle;
+  const Eigen::Vector2d centre(-0.5 * def.x(), -0.5 * def.y());
+  const double radius_squared = centre.squaredNorm() - def.z();
+  if (!(radius_squared > 0.0)) return std::nullopt;
+  circle.centre = centre + mean;
+  circle.radius = std::sqrt(radius_squared);
+  double sum = 0.0;
+  for (const auto& p : points) {
+    const double r = (p - circle.centre).norm() - circle.radius;
+    sum += r * r;
+  }
+  circle.rms_residual = std::sqrt(sum / static_cast<double>(points.size()));
+  return circle;
 }
 
 Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points) {
@@ -172,6 +213,21 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
                                                                      : pose.yaw_moments_deg;
   Eigen::Vector2d centre = pose.top_rectangle.centre;
+  if (options.max_circle_residual > 0.0) {
+    const std::vector<Eigen::Vector2d> hull = ConvexHull(top_xy);
+    constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
+    // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
+    constexpr std::size_t kMinCirclePoints = 60;
+    if (hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints) {
+      if (const auto circle = FitCircle(hull);
+          circle && circle->rms_residual < options.max_circle_residual * circle->radius) {
+        pose.round = true;
+        pose.circle_centre = circle->centre;
+        pose.circle_radius = circle->radius;
+        centre = circle->centre;
+      }
+    }
+  }
   if (!options.centroid_from_rectangle) {
     centre.setZero();
     for (const auto& p : all_xy) centre += p;
@@ -191,11 +247,65 @@ bool InsideConvexPolygon(const std::vector<Eigen::Vector2d>& hull, const Eigen::
   return true;
 }
 
+
+double SegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double length_squared = ab.squaredNorm();
+  const double t = length_squared > 0.0 ? std::clamp((p - a).dot(ab) / length_squared, 0.0, 1.0) : 0.0;
+  return (p - (a + t * ab)).norm();
+}
+
+// Smallest distance between the outlines of two convex polygons (0 when they overlap).
+double HullGap(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b) {
+  double gap = std::numeric_limits<double>::infinity();
+  for (int pass = 0; pass < 2; ++pass) {
+    const auto& from = pass == 0 ? a : b;
+    const auto& to = pass == 0 ? b : a;
+    for (const auto& p : from) {
+      if (InsideConvexPolygon(to, p)) return 0.0;
+      for (std::size_t i = 0; i < to.size(); ++i) {
+        gap = std::min(gap, SegmentDistance(p, to[i], to[(i + 1) % to.size()]));
+      }
+    }
+  }
+  return gap;
+}
+
+// Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces and more
+// than 2 top layers below or above their height: a solid top face hides what is under it, and
+// nothing stands on it.
+int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_world,
+                              const std::vector<int>& cluster_of_point, int a, int b,
+                              const std::vector<Eigen::Vector2d>& hull, double height,
+                              const ObjectPoseOptions& options, const std::vector<bool>* weak) {
+  if (hull.size() < 3) return 0;
+  Eigen::Vector2d low = hull[0], high = hull[0];
+  for (const auto& p : hull) {
+    low = low.cwiseMin(p);
+    high = high.cwiseMax(p);
+  }
+  int count = 0;
+  for (std::size_t i = 0; i < points_in_world.size(); ++i) {
+    const Eigen::Vector3d& p = points_in_world[i];
+    if (cluster_of_point[i] == a || cluster_of_point[i] == b) continue;
+    if (weak != nullptr && (*weak)[i]) continue;
+    if (!(std::abs(p.z() - height) > 2.0 * options.top_layer_mm)) continue;
+    if (p.x() < low.x() || p.y() < low.y() || p.x() > high.x() || p.y() > high.y()) continue;
+    if (InsideConvexPolygon(hull, p.head<2>())) ++count;
+  }
+  return count;
+}
+
 }  // namespace
+
 
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
-                                                  const ObjectPoseOptions& options, int* merges) {
+                                                  const ObjectPoseOptions& options, int* merges,
+                                                  const std::vector<bool>* weak) {
+  if (weak != nullptr && weak->size() != points_in_world.size()) {
+    throw std::invalid_argument("MergeTopFaceIslands: weak must have one flag per point");
+  }
   std::stable_sort(clusters.begin(), clusters.end(),
                    [](const auto& a, const auto& b) { return a.size() > b.size(); });
   int merged = 0;
@@ -212,10 +322,37 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
       }
       top_hulls.push_back(ConvexHull(top_xy));
     }
+    std::vector<int> cluster_of_point(points_in_world.size(), -1);
+    for (std::size_t c = 0; c < clusters.size(); ++c) {
+      for (int i : clusters[c]) cluster_of_point[static_cast<std::size_t>(i)] = static_cast<int>(c);
+    }
     for (std::size_t small = clusters.size(); small-- > 1 && !changed;) {
       for (std::size_t large = 0; large < small && !changed; ++large) {
         if (std::abs(poses[small].height_mm - poses[large].height_mm) > options.top_layer_mm) continue;
-        if (!InsideConvexPolygon(top_hulls[large], poses[small].top_rectangle.centre)) continue;
+        if (!InsideConvexPolygon(top_hulls[large], poses[small].top_rectangle.centre)) {
+          std::vector<Eigen::Vector2d> joint = top_hulls[large];
+          joint.insert(joint.end(), top_hulls[small].begin(), top_hulls[small].end());
+          joint = ConvexHull(joint);
+          const double height = 0.5 * (poses[small].height_mm + poses[large].height_mm);
+          // A round top face is complete when its hull fits a circle: a piece outside that
+          // circle belongs to something else.
+          const bool outside_circle =
+              poses[large].round &&
+              std::any_of(top_hulls[small].begin(), top_hulls[small].end(), [&](const Eigen::Vector2d& p) {
+                return (p - poses[large].circle_centre).norm() >
+                       poses[large].circle_radius + options.top_layer_mm;
+              });
+          if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
+              std::abs(poses[small].height_mm - poses[large].height_mm) >
+                  options.max_split_height_difference_mm ||
+              HullGap(top_hulls[small], top_hulls[large]) > options.max_top_face_gap_mm ||
+              PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
+                                        static_cast<int>(large), joint, height, options, weak) >
+                  options.max_hidden_fraction *
+                      static_cast<double>(clusters[small].size() + clusters[large].size())) {
+            continue;
+          }
+        }
         clusters[large].insert(clusters[large].end(), clusters[small].begin(), clusters[small].end());
         clusters.erase(clusters.begin() + static_cast<long>(small));
         ++merged;

@@ -32,6 +32,23 @@ struct ObjectPoseOptions {
   /// of all the cluster's points (x, y), at the top height.
   bool centroid_from_rectangle = true;
   YawMethod yaw_method = YawMethod::kMinAreaRectangle;
+  /// Round tops: a circle is fitted to the vertices of the top face's convex hull; when their
+  /// RMS radial residual is below this fraction of the radius (a rectangle's corners and sides
+  /// are 10 % or more off any circle) the part is round and, with centroid_from_rectangle, its
+  /// centroid is the circle's centre. The hull of a partly hidden disc still has its vertices on
+  /// the circle, where the rectangle's centre shifts. Needs 8 hull vertices and 60 top points
+  /// (a fragment of a face can fit some circle by chance). 0 disables the fit.
+  double max_circle_residual = 0.02;
+  /// MergeTopFaceIslands joins two pieces of one split top face only when their outlines are
+  /// at most this far apart (mm): the featureless middle of a top face, not a part's length.
+  double max_top_face_gap_mm = 30.0;
+  /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
+  /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
+  double max_split_height_difference_mm = 2.0;
+  /// ... and when the points at other heights inside their joint top face (mismatches on the
+  /// face's texture) are at most this fraction of their points: a gap between two parts shows
+  /// the dusty table, dense with points.
+  double max_hidden_fraction = 0.08;
   std::string Check() const;
 };
 
@@ -49,6 +66,9 @@ struct ObjectPose {
   double yaw_deg = 0.0;          ///< by options.yaw_method, in (-90, 90]
   double yaw_moments_deg = 0.0;  ///< thesis central moments, in (-90, 90]
   Rectangle2D top_rectangle;     ///< minimum-area rectangle of the top face's points
+  bool round = false;            ///< the top face's hull fits a circle (see max_circle_residual)
+  Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
+  double circle_radius = 0.0;    ///< when round (mm)
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points
@@ -65,6 +85,15 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> points);
 /// rectangle lies on a hull edge; Freeman & Shapira 1975). Empty input gives a zero rectangle.
 Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points);
 
+/// Least-squares circle (Kasa: algebraic fit) through `points`; nullopt for fewer than three
+/// points or collinear ones. `rms_residual` gets the RMS of |p - centre| - radius.
+struct Circle2D {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  double radius = 0.0;
+  double rms_residual = 0.0;
+};
+std::optional<Circle2D> FitCircle(const std::vector<Eigen::Vector2d>& points);
+
 /// Maps an angle (degrees) to (-90, 90] (an axis, not a direction).
 double NormaliseAxisAngle(double angle_deg);
 
@@ -78,10 +107,22 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// options.top_layer_mm of a larger cluster's and whose top-face centre lies inside that
 /// cluster's top-face hull joins it. Returns the merged clusters (largest first) and counts the
 /// merges in `merges` when given.
+///
+/// A top face can also split in two (its texture is sparse across the middle, beyond the
+/// clustering's reach). Two clusters whose top heights are within
+/// options.max_split_height_difference_mm and
+/// whose top faces are at most options.max_top_face_gap_mm apart join when the convex hull of
+/// their joint top face is consistent with one solid face: it occludes everything under it and
+/// nothing stands on it, so no other point (not `weak`, when given) lies inside that hull more
+/// than 2 * top_layer_mm below or above it (up to options.max_hidden_fraction of their points:
+/// mismatches), and, when the larger one is round, the other lies
+/// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
+/// other parts in the gap between them.
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options = {},
-                                                  int* merges = nullptr);
+                                                  int* merges = nullptr,
+                                                  const std::vector<bool>* weak = nullptr);
 
 /// Poses of all clusters, tallest first (the thesis's pick order).
 std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,

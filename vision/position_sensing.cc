@@ -45,6 +45,7 @@ std::string PositionSensingOptions::Check() const {
     return "min_edge_epipolar_angle_deg must be in [0, 90)";
   }
   if (min_strong_points < 1) return "min_strong_points must be >= 1";
+  if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -148,7 +149,8 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   if (options.clustering == ClusteringMethod::kGrid && options.merge_top_face_islands) {
     report.clustering.clusters = MergeTopFaceIslands(
-        report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges);
+        report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
+        &report.weak);
     std::fill(report.clustering.labels.begin(), report.clustering.labels.end(), -1);
     for (std::size_t c = 0; c < report.clustering.clusters.size(); ++c) {
       for (int i : report.clustering.clusters[c]) {
@@ -157,7 +159,14 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     }
   }
   std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
-    const bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
+    bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
+    if (!small && options.min_top_fraction > 0.0) {
+      const ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
+      if (pose.top_points < options.min_top_fraction * pose.points) {
+        small = true;
+        ++report.without_top_face;
+      }
+    }
     if (small) {
       report.clustering.n_in_small_clusters += static_cast<int>(cluster.size());
       for (int i : cluster) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
@@ -203,7 +212,13 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
           {{"centre", {pose.top_rectangle.centre.x(), pose.top_rectangle.centre.y()}},
            {"length", pose.top_rectangle.length},
            {"width", pose.top_rectangle.width},
-           {"yaw_deg", pose.top_rectangle.yaw_deg}}}});
+           {"yaw_deg", pose.top_rectangle.yaw_deg}}},
+         {"round", pose.round}});
+    if (pose.round) {
+      objects.back()["top_circle"] = {
+          {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},
+          {"radius", pose.circle_radius}};
+    }
   }
   const auto& t = report.triangulation;
   return {{"units", "mm"},
@@ -225,7 +240,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
           {"clustered_points",
            {{"outside_height_window", report.clustering.n_outside_height_window},
             {"in_small_clusters", report.clustering.n_in_small_clusters},
-            {"island_merges", report.island_merges}}},
+            {"island_merges", report.island_merges},
+            {"without_top_face", report.without_top_face}}},
           {"timing_ms",
            {{"match", report.timing_ms.match},
             {"triangulate", report.timing_ms.triangulate},

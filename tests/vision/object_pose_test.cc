@@ -121,5 +121,58 @@ TEST(ObjectPose, BadInputThrows) {
   EXPECT_FALSE(ParseYawMethod("pca").has_value());
 }
 
+// The hull of a partly hidden disc still lies on its circle: the fit recovers the centre where
+// the minimum-area rectangle's centre shifts; a rectangle is not taken for a circle.
+TEST(ObjectPose, RoundTopCentreFromCircleFitWhenPartlyHidden) {
+  std::mt19937 random(kSeed);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> indices;
+  const Eigen::Vector2d centre(50, 400);
+  for (int k = 0; k < 200; ++k) {  // a 270-degree arc of radius 20 mm at 30 mm
+    const double angle = (-90.0 + 270.0 * k / 200.0) * std::numbers::pi / 180.0;
+    points.emplace_back(centre.x() + 20 * std::cos(angle) + noise(random),
+                        centre.y() + 20 * std::sin(angle) + noise(random), 30 + noise(random));
+    indices.push_back(k);
+  }
+  const ObjectPose pose = EstimateObjectPose(points, indices);
+  EXPECT_TRUE(pose.round);
+  EXPECT_LT((pose.centroid.head<2>() - centre).norm(), 0.5);
+  EXPECT_GT((pose.top_rectangle.centre - centre).norm(), 3.0);
+  EXPECT_NEAR(pose.circle_radius, 20.0, 0.5);
+
+  std::vector<Eigen::Vector3d> box;
+  std::vector<int> box_indices;
+  for (const auto& p : RectanglePoints({0, 0}, 60, 40, 30, 300, 0.2, &random)) {
+    box_indices.push_back(static_cast<int>(box.size()));
+    box.emplace_back(p.x(), p.y(), 20.0);
+  }
+  EXPECT_FALSE(EstimateObjectPose(box, box_indices).round);
+}
+
+// A top face split in two (no texture across its middle) joins; two parts of the same height
+// with the table seen between them stay apart.
+TEST(ObjectPose, SplitTopFaceJoinsUnlessTheTableShowsBetween) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> first, second;
+  // The two 60 mm edges of a 60 x 40 mm face at 25 mm (y = 0 and y = 40), 20 mm of nothing
+  // between the edge bands.
+  for (int k = 0; k < 120; ++k) {
+    const double x = 60.0 * uniform(random);
+    const double y = (k % 2 == 0) ? 10.0 * uniform(random) : 30.0 + 10.0 * uniform(random);
+    (k % 2 == 0 ? first : second).push_back(static_cast<int>(points.size()));
+    points.emplace_back(x, y, 25.0 + 0.3 * (uniform(random) - 0.5));
+  }
+  int merges = 0;
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 1u);
+  EXPECT_EQ(merges, 1);
+  // The table (z = 0) seen in the band between them: two parts.
+  for (int k = 0; k < 40; ++k) points.emplace_back(60.0 * uniform(random), 12.0 + 16.0 * uniform(random), 0.0);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
+  EXPECT_EQ(merges, 0);
+}
+
 }  // namespace
 }  // namespace hnnstereo::vision

@@ -100,6 +100,54 @@ struct Figures {
   }
 };
 
+// Per-scene detail for the acceptance run: every true part's errors and every false object.
+void PrintScene(std::uint64_t seed, const PositionSensingReport& report, const RenderedScene& scene,
+                const TruthComparison& comparison) {
+  std::vector<bool> used(report.objects.size(), false);
+  for (const TruthPairing& pair : comparison.pairs) {
+    const SceneObject& object = scene.objects[static_cast<std::size_t>(pair.truth_index)];
+    std::cout << "seed " << seed << " part " << pair.truth_index << " at (" << object.centre_mm.x()
+              << ", " << object.centre_mm.y() << ") h " << object.height_mm();
+    if (pair.detected_index < 0) {
+      int strong = 0, weak = 0;
+      for (std::size_t i = 0; i < report.points_in_world.size(); ++i) {
+        const Eigen::Vector3d& p = report.points_in_world[i];
+        if ((p.head<2>() - object.centre_mm).norm() < 0.5 * object.size_mm.head<2>().norm() + 3.0 &&
+            std::abs(p.z() - object.height_mm()) < 5.0) {
+          ++(report.weak[i] ? weak : strong);
+        }
+      }
+      std::cout << ": MISSED (top points: " << strong << " strong, " << weak << " weak)\n";
+      for (std::size_t i = 0; i < report.points_in_world.size(); ++i) {
+        const Eigen::Vector3d& p = report.points_in_world[i];
+        if ((p.head<2>() - object.centre_mm).norm() < 0.5 * object.size_mm.head<2>().norm() + 3.0 &&
+            std::abs(p.z() - object.height_mm()) < 5.0 && std::getenv("HNNSTEREO_DEBUG")) {
+          std::cout << "  " << p.transpose() << " weak " << report.weak[i] << " label "
+                    << report.clustering.labels[i] << "\n";
+        }
+      }
+      continue;
+    }
+    used[static_cast<std::size_t>(pair.detected_index)] = true;
+    const ObjectPose& pose = report.objects[static_cast<std::size_t>(pair.detected_index)];
+    std::cout << ": centroid " << pair.centroid_error_mm << " height " << pair.height_error_mm
+              << " yaw " << pair.yaw_error_deg << " (points " << pose.points << ", top "
+              << pose.top_points << (pose.round ? ", round" : "") << ")\n";
+    if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {
+      std::cout << "  rectangle " << pose.top_rectangle.centre.transpose() << " "
+                << pose.top_rectangle.length << " x " << pose.top_rectangle.width << " circle "
+                << pose.circle_centre.transpose() << " r " << pose.circle_radius << "\n";
+    }
+  }
+  for (std::size_t d = 0; d < report.objects.size(); ++d) {
+    if (used[d]) continue;
+    const ObjectPose& pose = report.objects[d];
+    std::cout << "seed " << seed << " FALSE at (" << pose.centroid.x() << ", " << pose.centroid.y()
+              << ") h " << pose.height_mm << " (points " << pose.points << ", top "
+              << pose.top_points << ")\n";
+  }
+}
+
 PositionSensingOptions CpuOptions() {
   PositionSensingOptions options;
   options.matcher.engine = hnn::EngineKind::kCpu;
@@ -168,10 +216,15 @@ TEST(PositionSensing, AcceptanceOnSeededScenes) {
   for (int s = 0; s < num_scenes; ++s) {
     const auto seed = static_cast<std::uint64_t>(100 + s);
     const int num_objects = 1 + s % 9;
+    if (const char* only = std::getenv("HNNSTEREO_ACCEPTANCE_SEED");
+        only != nullptr && std::to_string(seed) != only) {
+      continue;
+    }
     const CalibratedScene scene = RenderAndCalibrate(seed, num_objects);
     const PositionSensingReport report =
         SensePositions(scene.scene.left, scene.scene.right, scene.calibrated, CpuOptions(), nullptr);
     const TruthComparison comparison = CompareWithTruth(report.objects, scene.scene.objects);
+    if (FullAcceptance()) PrintScene(seed, report, scene.scene, comparison);
     EXPECT_EQ(comparison.detected, num_objects) << "seed " << seed;
     EXPECT_EQ(comparison.false_objects, 0) << "seed " << seed;
     figures.Add(comparison, scene.scene.objects.size());
@@ -181,6 +234,38 @@ TEST(PositionSensing, AcceptanceOnSeededScenes) {
   EXPECT_LE(figures.Max(figures.centroid_mm), 4.0);
   EXPECT_LE(figures.Max(figures.height_mm), 2.0);
   EXPECT_LE(figures.Max(figures.yaw_deg), 2.0);
+}
+
+// Thesis 6.2.10 reports that its leader clustering on height fails when parts have too small
+// height differences (or there are too many parts). A rendered scene with four parts whose
+// heights lie within 4 mm (below the thesis's 5 mm threshold): the thesis clustering finds fewer
+// parts than there are, the default grid clustering finds each one, from the same matches.
+TEST(PositionSensing, RenderedSceneWhereThesisClusteringFailsAndGridSucceeds) {
+  SceneRenderOptions options;
+  // Seeds 1-6 all pass; seed 7 gives the grid clustering a false flat part at 12 mm between two
+  // close parts (docs/position_sensing.md, known limits).
+  options.seed = 1;
+  options.num_objects = 4;
+  options.min_height_mm = 40.0;
+  options.max_height_mm = 44.0;
+  const RenderedScene scene = RenderScene(options);
+  ASSERT_EQ(scene.objects.size(), 4u);
+  PositionSensingOptions grid = CpuOptions();
+  const MatchReport match =
+      MatchStereo(scene.left, scene.right, &scene.cameras, grid.matcher, nullptr);
+  const PositionSensingReport grid_report =
+      SensePositionsFromMatches(match, scene.cameras, grid, scene.left);
+  const TruthComparison by_grid = CompareWithTruth(grid_report.objects, scene.objects);
+  PrintScene(options.seed, grid_report, scene, by_grid);
+  PositionSensingOptions thesis = CpuOptions();
+  thesis.clustering = ClusteringMethod::kThesisLeader;
+  const PositionSensingReport thesis_report =
+      SensePositionsFromMatches(match, scene.cameras, thesis, scene.left);
+  const TruthComparison by_thesis = CompareWithTruth(thesis_report.objects, scene.objects);
+  EXPECT_EQ(by_grid.detected, 4);
+  EXPECT_EQ(by_grid.false_objects, 0);
+  EXPECT_LT(by_thesis.detected, 4);
+  EXPECT_LT(thesis_report.objects.size(), 4u);  // parts merged into one height cluster
 }
 
 // The thesis's robustness test: zero-mean Gaussian noise on the entries of F (unit Frobenius
