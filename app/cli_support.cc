@@ -104,16 +104,16 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
                   "Largest distance (px) of a candidate from its epipolar line")
       ->capture_default_str();
-  cmd->add_option("--top-k", o.candidates.top_k,
-                  "Keep the K best-correlated candidates per left feature (0 = all)")
-      ->capture_default_str();
+  top_k_option = cmd->add_option("--top-k", o.candidates.top_k,
+                                 "Keep the K best-correlated candidates per left feature (0 = all; "
+                                 "default from the preset)");
   cmd->add_flag("--dense", o.candidates.dense,
                 "The thesis's all-pairs network: every left x right pair is a neuron and every "
                 "neuron is connected to every other (O((N_L N_R)^2) memory)");
-  cmd->add_option("--network", network,
-                  "feature (rows = left features, columns = right features) or disparity "
-                  "(columns = disparity levels; rectified pairs)")
-      ->capture_default_str();
+  network_option = cmd->add_option(
+      "--network", network,
+      "feature (rows = left features, columns = right features) or disparity (columns = "
+      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default from the preset");
   cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
       ->capture_default_str();
   cmd->add_option("--engine", engine,
@@ -136,9 +136,10 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
           ->capture_default_str();
   cmd->add_flag("--no-lr-check", no_left_right_check,
                 "Skip the preset's left-right consistency check");
-  cmd->add_option("--support-radius", o.energy.support_radius_px,
-                  "Sparse networks: connect neurons whose left features are within this many px")
-      ->capture_default_str();
+  support_radius_option = cmd->add_option(
+      "--support-radius", o.energy.support_radius_px,
+      "Sparse networks: connect neurons whose left features are within this many px (default "
+      "from the preset)");
   cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
   cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
   cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
@@ -181,6 +182,18 @@ void MatcherFlags::Resolve() {
   }
   refinement = chosen->refinement;
   if (no_left_right_check) refinement.left_right_check = false;
+  // The preset's network and gating, unless given on the command line.
+  const auto given = [](const CLI::Option* option) { return option && option->count() > 0; };
+  const vision::CandidateOptions& preset_candidates = chosen->matcher.candidates;
+  if (!given(network_option)) {
+    network = preset_candidates.kind == hnn::NetworkKind::kFeatureVsDisparity ? "disparity" : "feature";
+    o.candidates.zncc_peaks = preset_candidates.zncc_peaks;
+    o.candidates.subpixel_peaks = preset_candidates.subpixel_peaks;
+  }
+  if (!given(top_k_option)) o.candidates.top_k = preset_candidates.top_k;
+  if (!given(support_radius_option)) {
+    o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
+  }
   if (auto d = vision::ParseFeatureDetector(features)) {
     o.features.detector = *d;
   } else {
@@ -231,7 +244,26 @@ void MatcherFlags::Resolve() {
   }
   if (!(memory_budget_mb > 0)) throw std::invalid_argument("--memory-budget-mb must be positive");
   o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
-  if (auto error = o.Check(); !error.empty()) throw std::invalid_argument(error);
+  // The geometry (rectified or not) is settled later by the command; check the rest now.
+  vision::MatcherOptions rest = o;
+  rest.candidates.rectified = true;
+  if (auto error = rest.Check(); !error.empty()) throw std::invalid_argument(error);
+}
+
+void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {
+  auto& o = options;
+  if (rectified || o.candidates.kind != hnn::NetworkKind::kFeatureVsDisparity) return;
+  if (network_option && network_option->count() > 0) return;  // the user asked; Check() says no
+  const std::optional<vision::MatcherPreset> fallback = vision::FindPreset("hnn-geometry-lr");
+  o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+  o.candidates.zncc_peaks = false;
+  o.candidates.subpixel_peaks = false;
+  if (fallback) {
+    if (!(top_k_option && top_k_option->count() > 0)) o.candidates.top_k = fallback->matcher.candidates.top_k;
+    if (!(support_radius_option && support_radius_option->count() > 0)) {
+      o.energy.support_radius_px = fallback->matcher.energy.support_radius_px;
+    }
+  }
 }
 
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {

@@ -28,6 +28,9 @@ struct MatcherFlags {
   bool no_left_right_check = false;
   vision::RefinementOptions refinement;  ///< from the preset, after Resolve()
   CLI::Option* objective_option = nullptr;
+  CLI::Option* network_option = nullptr;
+  CLI::Option* top_k_option = nullptr;
+  CLI::Option* support_radius_option = nullptr;
   std::string initial_state = "off";
   std::string activation = "continuous";
   std::string decode = "thesis";
@@ -40,6 +43,10 @@ struct MatcherFlags {
   /// Parses the string-valued flags into `options` and applies the preset (its objective unless
   /// --objective was given, its refinements unless --no-lr-check); throws std::invalid_argument.
   void Resolve();
+  /// The preset's feature-vs-disparity network needs rectified rows: for a calibrated,
+  /// unrectified pair fall back to the feature-vs-feature network of preset hnn-geometry-lr
+  /// (unless --network was given). Call after Resolve() once the geometry is known.
+  void UseFeatureNetworkUnlessRectified(bool rectified);
 };
 
 /// The OpenCL runtime for `engine` == opencl (nullptr otherwise or when none exists, with a

@@ -33,7 +33,8 @@ struct EvalArgs {
   int top_k = 8, max_features = 0, zncc_window = 7, max_steps = 300;
   double memory_budget_mb = 6144.0;
   double support_radius = 8.0, threshold = 0.5, max_epipolar = 1.5, min_correlation = -1.0;
-  bool left_right_check = false, subpixel = false;
+  bool left_right_check = false, subpixel = false, zncc_peaks = false, subpixel_peaks = false;
+  double lr_tolerance = 1.0;
   CLI::App* cmd = nullptr;
 };
 
@@ -56,6 +57,7 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
       o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
     } else if (args.network == "disparity") {
       o.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
+      o.candidates.rectified = true;  // the Middlebury pairs are rectified
     } else {
       throw std::invalid_argument("--network: unknown '" + args.network + "'");
     }
@@ -70,6 +72,9 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
   if (Given(args, "--min-correlation")) o.candidates.min_correlation = args.min_correlation;
   if (Given(args, "--lr-check")) preset.refinement.left_right_check = args.left_right_check;
   if (Given(args, "--subpixel")) preset.refinement.subpixel = args.subpixel;
+  if (Given(args, "--lr-tolerance")) preset.refinement.left_right_tolerance_px = args.lr_tolerance;
+  if (Given(args, "--zncc-peaks")) o.candidates.zncc_peaks = args.zncc_peaks;
+  if (Given(args, "--subpixel-peaks")) o.candidates.subpixel_peaks = args.subpixel_peaks;
   return preset;
 }
 
@@ -165,7 +170,9 @@ void AddEvalCommand(CLI::App& app) {
   cmd->add_option("--presets", args->presets,
                   "Comma-separated matcher presets, the first is the one under test and gives "
                   "the baselines their pixels: hnn-default, hnn-thesis, and the ablations "
-                  "hnn-geometry (no refinement), hnn-geometry-lr (left-right check only)")
+                  "hnn-geometry (no refinement), hnn-geometry-lr (left-right check only; the "
+                  "previous default), hnn-disparity (all disparity levels, no peak selection), "
+                  "hnn-disparity-subpixel (sub-pixel peaks)")
       ->capture_default_str();
   cmd->add_option("--engine", args->engine, "opencl (falls back to cpu with a notice), cpu, thesis")
       ->capture_default_str();
@@ -193,6 +200,11 @@ void AddEvalCommand(CLI::App& app) {
   cmd->add_option("--min-correlation", args->min_correlation, "First preset: ZNCC gate");
   cmd->add_option("--lr-check", args->left_right_check, "First preset: left-right check (0/1)");
   cmd->add_option("--subpixel", args->subpixel, "First preset: sub-pixel parabola fit (0/1)");
+  cmd->add_option("--lr-tolerance", args->lr_tolerance, "First preset: left-right tolerance (px)");
+  cmd->add_option("--zncc-peaks", args->zncc_peaks,
+                  "First preset, disparity network: candidates only at ZNCC peaks (0/1)");
+  cmd->add_option("--subpixel-peaks", args->subpixel_peaks,
+                  "First preset, disparity network: parabola sub-pixel candidate disparities (0/1)");
   cmd->callback([args] { RunEval(*args); });
 }
 

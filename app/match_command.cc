@@ -52,6 +52,8 @@ void RunMatch(MatchArgs& args) {
                   estimate.fundamental.mean_epipolar_distance_px, estimate.time_ms);
     }
   }
+  args.flags.UseFeatureNetworkUnlessRectified(options.candidates.rectified);
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
   if (options.candidates.z_range_mm && !calibration) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }

@@ -33,6 +33,7 @@ void RunPick(PickArgs& args) {
         "--robot/--frame are not available in pick yet; use the robot commands for the link");
   }
   args.flags.Resolve();
+  args.flags.UseFeatureNetworkUnlessRectified(false);  // pick cells are calibrated, unrectified
   args.sensing.matcher = args.flags.options;
   if (auto method = vision::ParseClusteringMethod(args.clustering)) {
     args.sensing.clustering = *method;

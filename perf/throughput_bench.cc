@@ -109,6 +109,11 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       matcher.candidates.rectified = true;
       matcher.candidates.max_disparity = options.max_disparity;
       matcher.candidates.dense = c.dense;
+      if (c.dense) {  // the thesis's all-pairs feature-vs-feature network
+        matcher.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+        matcher.candidates.zncc_peaks = false;
+        matcher.candidates.subpixel_peaks = false;
+      }
       nlohmann::json run;
       run["case"] = c.name;
       run["engine"] = vision::EngineName(engine);

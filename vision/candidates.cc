@@ -53,6 +53,9 @@ std::string CandidateOptions::Check() const {
   if (kind == hnn::NetworkKind::kFeatureVsDisparity && !rectified) {
     return "the feature-vs-disparity network needs a rectified pair";
   }
+  if ((zncc_peaks || subpixel_peaks) && kind != hnn::NetworkKind::kFeatureVsDisparity) {
+    return "zncc_peaks / subpixel_peaks need the feature-vs-disparity network";
+  }
   return {};
 }
 
@@ -103,6 +106,7 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   };
 
   std::vector<Scored> scored;
+  std::vector<float> profile;
   if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
     // Columns are disparity levels min..max (thesis code, operation mode 3).
     const int d_min = static_cast<int>(std::ceil(options.min_disparity));
@@ -111,12 +115,39 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
     for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
       const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
       scored.clear();
-      for (int d = d_min; d <= d_max; ++d) {
-        const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
-        ++report.pairs_tested;
-        const float m = zncc(l, r);
-        if (m < options.min_correlation) continue;
-        scored.push_back({d - d_min, r, 0.0f, m});
+      if (!options.zncc_peaks && !options.subpixel_peaks) {
+        for (int d = d_min; d <= d_max; ++d) {
+          const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
+          ++report.pairs_tested;
+          if (!zncc.RightWindowInside(r)) continue;  // no such pixel in the right image
+          const float m = zncc(l, r);
+          if (m < options.min_correlation) continue;
+          scored.push_back({d - d_min, r, 0.0f, m});
+        }
+      } else {
+        // The ZNCC profile along the row, then its peaks (and/or sub-pixel vertices).
+        profile.assign(static_cast<std::size_t>(problem.n_columns), -1.0f);
+        for (int d = d_min; d <= d_max; ++d) {
+          ++report.pairs_tested;
+          const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
+          // -2 marks a level whose right window leaves the image: never a candidate.
+          profile[static_cast<std::size_t>(d - d_min)] = zncc.RightWindowInside(r) ? zncc(l, r) : -2.0f;
+        }
+        const int n = problem.n_columns;
+        for (int c = 0; c < n; ++c) {
+          const float m = profile[static_cast<std::size_t>(c)];
+          if (m < -1.0f || m < options.min_correlation) continue;
+          const float before = c > 0 ? profile[static_cast<std::size_t>(c - 1)] : -2.0f;
+          const float after = c + 1 < n ? profile[static_cast<std::size_t>(c + 1)] : -2.0f;
+          if (options.zncc_peaks && !(m >= before && m >= after)) continue;
+          float d = static_cast<float>(c + d_min);
+          if (options.subpixel_peaks && c > 0 && c + 1 < n) {
+            // Vertex of the parabola through (d-1, before), (d, m), (d+1, after), in disparity.
+            const float curvature = before - 2.0f * m + after;
+            if (curvature < 0.0f) d += std::clamp(0.5f * (before - after) / curvature, -0.5f, 0.5f);
+          }
+          scored.push_back({c, Eigen::Vector2f(l.x() - d, l.y()), 0.0f, m});
+        }
       }
       KeepTopK(&scored, options.top_k);
       for (const Scored& s : scored) problem.candidates.push_back({i, s.column, s.right_point, s.tau, s.correlation});

@@ -26,6 +26,14 @@ struct CandidateOptions {
   double min_correlation = -1.0;          ///< drop candidates whose ZNCC is below this
   bool dense = false;                     ///< the thesis's all-pairs network (no gating at all)
   hnn::NetworkKind kind = hnn::NetworkKind::kFeatureVsFeature;
+  /// Feature-vs-disparity only: keep only the local maxima of ZNCC along the row (a disparity
+  /// whose ZNCC is >= both neighbours'), so top-K picks K distinct peaks instead of the
+  /// shoulders of the best one. Off: every disparity level competes (the thesis code).
+  bool zncc_peaks = false;
+  /// Feature-vs-disparity only: move each candidate's right point to the vertex of the parabola
+  /// through ZNCC at d - 1, d, d + 1 (at most 0.5 px), so the disparity-gradient compatibility
+  /// sees sub-pixel disparities. The column stays the integer level.
+  bool subpixel_peaks = false;
   std::string Check() const;
 };
 

@@ -160,4 +160,11 @@ float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
   return static_cast<float>(std::clamp(zncc, -1.0, 1.0));
 }
 
+bool ZnccMatcher::RightWindowInside(const Eigen::Vector2f& right_point) const {
+  if (!right_point.allFinite()) return false;
+  const long x = std::lround(right_point.x()), y = std::lround(right_point.y());
+  return x - radius_ >= 0 && y - radius_ >= 0 && x + radius_ < right_.cols &&
+         y + radius_ < right_.rows;
+}
+
 }  // namespace hnnstereo::vision

@@ -20,6 +20,9 @@ class ZnccMatcher {
 
   int window() const { return window_; }
 
+  /// True when the window centred at the (rounded) right point lies inside the right image.
+  bool RightWindowInside(const Eigen::Vector2f& right_point) const;
+
  private:
   cv::Mat left_, right_;  // CV_32F copies
   // Per pixel, interleaved so that one call reads one cache line per image: the window sum

@@ -97,7 +97,8 @@ std::string MatcherKey(const MatcherOptions& o) {
       << o.features.sobel_threshold << '|' << o.candidates.rectified << ','
       << o.candidates.max_epipolar_distance_px << ',' << o.candidates.min_disparity << ','
       << o.candidates.max_disparity << ',' << o.candidates.top_k << ',' << o.candidates.min_correlation
-      << ',' << o.candidates.dense << ',' << static_cast<int>(o.candidates.kind) << '|' << o.zncc_window
+      << ',' << o.candidates.dense << ',' << static_cast<int>(o.candidates.kind) << ','
+      << o.candidates.zncc_peaks << ',' << o.candidates.subpixel_peaks << '|' << o.zncc_window
       << '|' << e.A << ',' << e.B << ',' << e.C << ',' << e.D << ',' << e.W1 << ',' << e.W2 << ','
       << e.T << ',' << e.lambda << ',' << e.theta << ',' << static_cast<int>(e.objective) << ','
       << static_cast<int>(e.compatibility) << ',' << e.support_radius_px << ','
@@ -435,6 +436,16 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
       preset.name += " (warped)";
       preset.matcher.candidates.rectified = false;
       preset.matcher.candidates.z_range_mm = std::make_pair(min_depth, max_depth);
+      if (preset.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity) {
+        // Disparity levels need rectified rows: the unrectified run uses the feature-vs-feature
+        // network with the preset's other settings.
+        preset.matcher.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+        preset.matcher.candidates.zncc_peaks = false;
+        preset.matcher.candidates.subpixel_peaks = false;
+        evaluation.notices.push_back(preset.name +
+                                     ": the disparity network needs rectified rows; the warped "
+                                     "run uses the feature-vs-feature network");
+      }
       MethodMatches matches;
       matches.method = preset.name;
       try {

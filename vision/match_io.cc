@@ -55,6 +55,9 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                               {"activation", d.activation == hnn::Activation::kContinuous
                                                  ? "continuous" : "discrete"}};
   json["candidate_options"] = {{"rectified", options.candidates.rectified},
+                               {"network", options.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
+                                               ? "disparity" : "feature"},
+                               {"zncc_peaks", options.candidates.zncc_peaks},
                                {"dense", options.candidates.dense},
                                {"top_k", options.candidates.top_k},
                                {"min_disparity", options.candidates.min_disparity},

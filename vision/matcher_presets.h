@@ -40,8 +40,10 @@ struct MatcherPreset {
 /// initial state, thesis pruning (row max, column max, threshold 0.5), feature-vs-feature.
 MatcherPreset ThesisPreset();
 
-/// The measured better default (docs/accuracy.md): geometric consistency times similarity
-/// (THESIS.md hint) and the left-right ZNCC check (sub-pixel refinement measured and left off).
+/// The measured better default (docs/accuracy.md): the feature-vs-disparity network with
+/// candidates at the ZNCC peaks along the row, geometric consistency times similarity (THESIS.md
+/// hint) and the left-right ZNCC check (sub-pixel refinement measured and left off). Rectified
+/// pairs only; "hnn-geometry-lr" is the previous, feature-vs-feature default.
 MatcherPreset AccurateDefaultPreset();
 
 /// All named presets; `name` lookup for --preset.

@@ -1,6 +1,7 @@
 // Candidate gating: rows, disparity range, top-K, height range, dense and feature-vs-disparity.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <opencv2/core.hpp>
 #include <random>
@@ -112,6 +113,38 @@ TEST(BuildCandidates, FeatureVersusDisparityNetwork) {
     const Eigen::Vector2f& l = pair.left_points[static_cast<std::size_t>(c.left)];
     EXPECT_FLOAT_EQ(l.x() - c.right_point.x(), static_cast<float>(c.column + 4));
   }
+}
+
+TEST(BuildCandidates, ZnccPeaksWithSubpixelDisparities) {
+  const Pair pair = TexturedPair(5);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  options.min_disparity = 4;
+  options.max_disparity = 15;
+  options.top_k = 0;
+  options.zncc_peaks = true;
+  options.subpixel_peaks = true;
+  const CandidateReport report = BuildCandidates(pair.left_points, {}, zncc, nullptr, options);
+  // Fewer candidates than levels (only the peaks), every left feature keeps its true disparity
+  // as a peak, and the sub-pixel vertex stays within 0.5 px of the integer level.
+  EXPECT_LT(report.problem.candidates.size(), pair.left_points.size() * 12);
+  std::map<int, bool> has_true;
+  for (const hnn::Candidate& c : report.problem.candidates) {
+    const Eigen::Vector2f& l = pair.left_points[static_cast<std::size_t>(c.left)];
+    const float d = l.x() - c.right_point.x();
+    EXPECT_LE(std::abs(d - static_cast<float>(c.column + 4)), 0.5f + 1e-4f);
+    if (c.column + 4 == static_cast<int>(kShift)) {
+      has_true[c.left] = true;
+      EXPECT_NEAR(d, kShift, 0.25f);  // an exact integer shift: a nearly symmetric peak
+    }
+  }
+  EXPECT_EQ(has_true.size(), pair.left_points.size());
+  // Feature-vs-feature networks refuse the peak options.
+  options.kind = hnn::NetworkKind::kFeatureVsFeature;
+  EXPECT_THROW(BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options),
+               std::invalid_argument);
 }
 
 TEST(BuildCandidates, HeightRangeGatesThroughTriangulation) {
