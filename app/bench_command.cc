@@ -49,6 +49,7 @@ void RunBench(BenchArgs& args) {
   args.flags.Resolve();
   perf::ThroughputBenchOptions& bench = args.bench;
   bench.matcher = args.flags.options;
+  bench.matcher.candidates.rectified = true;  // the benchmark pair is rectified
   bench.max_disparity = bench.matcher.candidates.max_disparity;
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {
