@@ -8,7 +8,6 @@
 #include "calib/atomic_file.h"
 
 namespace hnnstereo::vision {
-namespace {
 
 cv::Mat ToColour8(const cv::Mat& image) {
   cv::Mat eight;
@@ -30,7 +29,6 @@ cv::Mat ToColour8(const cv::Mat& image) {
   return colour;
 }
 
-}  // namespace
 
 cv::Mat DrawMatchOverlay(const cv::Mat& left, const cv::Mat& right, const MatchReport& report,
                          int line_every) {

@@ -8,6 +8,9 @@
 
 namespace hnnstereo::vision {
 
+/// A BGR 8-bit copy of an image for drawing: 16-bit scaled by its range, grey and BGRA converted.
+cv::Mat ToColour8(const cv::Mat& image);
+
 /// Left and right images side by side: every feature as a dim dot, matched features coloured by
 /// disparity (blue near zero, red at the largest) and joined by a line for every `line_every`-th
 /// match.

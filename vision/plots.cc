@@ -1,5 +1,7 @@
 #include "vision/plots.h"
 
+#include "vision/overlay.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,20 +15,6 @@ namespace {
 constexpr int kPlotWidth = 640;
 constexpr int kPlotHeight = 360;
 constexpr int kMarginLeft = 70, kMarginRight = 20, kMarginTop = 30, kMarginBottom = 45;
-
-cv::Mat ToColour(const cv::Mat& image) {
-  cv::Mat eight = image;
-  if (image.depth() != CV_8U) image.convertTo(eight, CV_8U);
-  cv::Mat colour;
-  if (eight.channels() == 1) {
-    cv::cvtColor(eight, colour, cv::COLOR_GRAY2BGR);
-  } else if (eight.channels() == 4) {
-    cv::cvtColor(eight, colour, cv::COLOR_BGRA2BGR);
-  } else {
-    colour = eight.clone();
-  }
-  return colour;
-}
 
 std::string Format(const char* format, double value) {
   char text[64];
@@ -75,7 +63,7 @@ cv::Scalar LabelColour(int label) {
 
 cv::Mat DrawObjectOverlay(const cv::Mat& left_image, const PositionSensingReport& report,
                           const calib::ProjectionMatrix& P1, double line_length_mm) {
-  cv::Mat canvas = ToColour(left_image) * 0.6;
+  cv::Mat canvas = ToColour8(left_image) * 0.6;
   for (const auto& p : report.match.left_features) {
     cv::circle(canvas, cv::Point2f(p.x(), p.y()), 1, cv::Scalar(110, 110, 110), cv::FILLED);
   }
