@@ -9,6 +9,7 @@
 #include "calib/atomic_file.h"
 #include "calib/calibration.h"
 #include "vision/image.h"
+#include "vision/lens_distortion.h"
 #include "vision/overlay.h"
 #include "vision/plots.h"
 #include "vision/ply.h"
@@ -60,10 +61,17 @@ void RunPick(PickArgs& args) {
                                 std::to_string(left.grey.cols) + "x" +
                                 std::to_string(left.grey.rows));
   }
+  // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
+  // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
+  cv::Mat left_grey = left.grey, right_grey = right.grey;
+  if (calibration.intrinsics && !calibration.intrinsics->D1.empty()) {
+    left_grey = vision::UndistortImage(left.grey, calibration.intrinsics->K1, calibration.intrinsics->D1);
+    right_grey = vision::UndistortImage(right.grey, calibration.intrinsics->K2, calibration.intrinsics->D2);
+  }
   std::unique_ptr<ocl::Runtime> runtime =
       OpenRuntimeFor(args.sensing.matcher.engine, args.flags.device);
   const vision::PositionSensingReport report =
-      vision::SensePositions(left.grey, right.grey, calibration, args.sensing, runtime.get());
+      vision::SensePositions(left_grey, right_grey, calibration, args.sensing, runtime.get());
 
   // Everything is computed before anything is written; each file is written atomically.
   nlohmann::json json = vision::ObjectsJson(report, args.sensing);
@@ -73,7 +81,9 @@ void RunPick(PickArgs& args) {
   calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(args.overlay,
-                               vision::DrawObjectOverlay(left.original, report, calibration.P1));
+                               vision::DrawObjectOverlay(
+                                   left_grey.data == left.grey.data ? left.original : left_grey,
+                                   report, calibration.P1));
   }
   if (!args.ply.empty()) {
     std::vector<int> labels(report.points_in_world.size(), -1);
