@@ -208,9 +208,12 @@ std::vector<CurvePoint> PrecisionDensityCurve(const MethodMatches& matches, cons
   return curve;
 }
 
-MethodMatches WinnerTakeAllZncc(const cv::Mat& left_grey, const cv::Mat& right_grey,
+// Winner-take-all ZNCC over the right pixels `search(left, visit)` visits for each left pixel
+// (the thesis's local search); a left pixel with no candidate gets a NaN partner.
+template <typename Search>
+MethodMatches WinnerTakeAllOver(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                 const std::vector<Eigen::Vector2f>& left_points, int window,
-                                int min_disparity, int max_disparity) {
+                                const Search& search) {
   const auto start = Clock::now();
   MethodMatches result;
   result.method = "wta-zncc";
@@ -219,12 +222,10 @@ MethodMatches WinnerTakeAllZncc(const cv::Mat& left_grey, const cv::Mat& right_g
     const Eigen::Vector2f left(std::round(point.x()), std::round(point.y()));
     float best = -std::numeric_limits<float>::infinity();
     Eigen::Vector2f best_right(kNaN, kNaN);
-    for (int d = min_disparity; d <= max_disparity; ++d) {
-      const Eigen::Vector2f right(left.x() - static_cast<float>(d), left.y());
-      if (right.x() < 0.0f) break;
+    search(left, [&](const Eigen::Vector2f& right) {
       const float score = zncc(left, right);
       if (score > best) best = score, best_right = right;
-    }
+    });
     result.left.push_back(point);
     result.right.push_back(best_right);
     result.confidence.push_back(std::isfinite(best) ? best : -2.0f);
@@ -233,46 +234,47 @@ MethodMatches WinnerTakeAllZncc(const cv::Mat& left_grey, const cv::Mat& right_g
   return result;
 }
 
+MethodMatches WinnerTakeAllZncc(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                const std::vector<Eigen::Vector2f>& left_points, int window,
+                                int min_disparity, int max_disparity) {
+  return WinnerTakeAllOver(left_grey, right_grey, left_points, window,
+                           [&](const Eigen::Vector2f& left, const auto& visit) {
+                             for (int d = min_disparity; d <= max_disparity; ++d) {
+                               const Eigen::Vector2f right(left.x() - static_cast<float>(d), left.y());
+                               if (right.x() < 0.0f) break;
+                               visit(right);
+                             }
+                           });
+}
+
 MethodMatches WinnerTakeAllZnccAlongRay(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                         const calib::StereoCalibration& calibration,
                                         const std::vector<Eigen::Vector2f>& left_points, int window,
                                         double min_depth, double max_depth) {
-  const auto start = Clock::now();
-  MethodMatches result;
-  result.method = "wta-zncc";
-  const ZnccMatcher zncc(left_grey, right_grey, window);
-  const Eigen::Matrix3d M1 = calibration.P1.leftCols<3>();
-  const Eigen::Matrix3d M1_inverse = M1.inverse();
+  const Eigen::Matrix3d M1_inverse = calibration.P1.leftCols<3>().inverse();
   const Eigen::Vector3d C1 = calibration.C1;
-  for (const Eigen::Vector2f& point : left_points) {
-    const Eigen::Vector2f left(std::round(point.x()), std::round(point.y()));
-    // Points of the left pixel's ray, projected into the right image (one per right pixel).
-    const Eigen::Vector3d direction = M1_inverse * Eigen::Vector3d(left.x(), left.y(), 1.0);
-    auto project = [&](double depth) {
-      const Eigen::Vector3d world = C1 + depth * direction / direction.z();
-      return Eigen::Vector2d((calibration.P2 * world.homogeneous()).hnormalized());
-    };
-    const Eigen::Vector2d near = project(min_depth), far = project(max_depth);
-    const int samples = std::max(2, static_cast<int>(std::ceil((near - far).norm())) + 1);
-    float best = -std::numeric_limits<float>::infinity();
-    Eigen::Vector2f best_right(kNaN, kNaN);
-    for (int s = 0; s < samples; ++s) {
-      const Eigen::Vector2d right = far + (near - far) * (double(s) / (samples - 1));
-      const Eigen::Vector2f pixel(static_cast<float>(std::round(right.x())),
-                                  static_cast<float>(std::round(right.y())));
-      if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() > static_cast<float>(right_grey.cols - 1) ||
-          pixel.y() > static_cast<float>(right_grey.rows - 1)) {
-        continue;
-      }
-      const float score = zncc(left, pixel);
-      if (score > best) best = score, best_right = pixel;
-    }
-    result.left.push_back(point);
-    result.right.push_back(best_right);
-    result.confidence.push_back(std::isfinite(best) ? best : -2.0f);
-  }
-  result.time_ms = MillisecondsSince(start);
-  return result;
+  return WinnerTakeAllOver(
+      left_grey, right_grey, left_points, window,
+      [&](const Eigen::Vector2f& left, const auto& visit) {
+        // Points of the left pixel's ray, projected into the right image (one per right pixel).
+        const Eigen::Vector3d direction = M1_inverse * Eigen::Vector3d(left.x(), left.y(), 1.0);
+        auto project = [&](double depth) {
+          const Eigen::Vector3d world = C1 + depth * direction / direction.z();
+          return Eigen::Vector2d((calibration.P2 * world.homogeneous()).hnormalized());
+        };
+        const Eigen::Vector2d near = project(min_depth), far = project(max_depth);
+        const int samples = std::max(2, static_cast<int>(std::ceil((near - far).norm())) + 1);
+        for (int s = 0; s < samples; ++s) {
+          const Eigen::Vector2d right = far + (near - far) * (double(s) / (samples - 1));
+          const Eigen::Vector2f pixel(static_cast<float>(std::round(right.x())),
+                                      static_cast<float>(std::round(right.y())));
+          if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() > static_cast<float>(right_grey.cols - 1) ||
+              pixel.y() > static_cast<float>(right_grey.rows - 1)) {
+            continue;
+          }
+          visit(pixel);
+        }
+      });
 }
 
 MethodMatches OpenCvBlockMatching(const cv::Mat& left_grey, const cv::Mat& right_grey,
