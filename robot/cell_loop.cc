@@ -1,0 +1,100 @@
+#include "robot/cell_loop.h"
+
+#include <stdexcept>
+
+namespace hnnstereo::robot {
+namespace {
+
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+std::string CellLoopOptions::Check() const {
+  if (cycles < 0) return "cycles must be >= 0 (0 = until a stop)";
+  if (trigger_poll.count() <= 0) return "trigger_poll must be positive";
+  if (ack_timeout.count() <= 0) return "ack_timeout must be positive";
+  if (idle_limit.count() < 0) return "idle_limit must be >= 0";
+  return planning.Check();
+}
+
+CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const SenseFunction& sense,
+                           const CellLoopOptions& options) {
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (auto error = frame.Check(); !error.empty()) throw std::invalid_argument("frame: " + error);
+  CellLoopReport report;
+  std::uint32_t next_sequence = 1;
+  auto stop_requested = [&] {
+    return options.stop_requested != nullptr && options.stop_requested->load();
+  };
+  auto idle_since = std::chrono::steady_clock::now();
+  while (options.cycles == 0 || report.cycles < options.cycles) {
+    if (stop_requested()) {
+      report.stopped = true;
+      break;
+    }
+    const Trigger trigger = link.WaitForTrigger(options.trigger_poll);
+    if (trigger.kind == TriggerKind::kStop) {
+      report.stopped = true;
+      break;
+    }
+    if (trigger.kind == TriggerKind::kIdle) {
+      if (options.idle_limit.count() > 0 &&
+          std::chrono::steady_clock::now() - idle_since > options.idle_limit) {
+        report.idle_timeout = true;
+        break;
+      }
+      continue;
+    }
+    const auto cycle_start = std::chrono::steady_clock::now();
+    CycleLog log;
+    log.cycle = ++report.cycles;
+    log.request_sequence = trigger.request_sequence;
+    CycleResult cycle;
+    cycle.request_sequence = trigger.request_sequence;
+    try {
+      SensedCycle sensed = sense();
+      log.sense_ms = MillisecondsSince(cycle_start);
+      log.objects = static_cast<int>(sensed.objects.size());
+      SortTallestFirst(&sensed.objects);
+      for (const SensedObject& object : sensed.objects) {
+        cycle.picks.push_back(PlanPick(object, frame.robot_from_world, options.planning,
+                                       next_sequence++, sensed.capture_time_s));
+      }
+    } catch (const std::exception& error) {
+      log.sense_ms = MillisecondsSince(cycle_start);
+      ++report.sense_errors;
+      cycle.picks.clear();
+      cycle.status = kErrorSensingFailed;
+      cycle.error = error.what();
+    }
+    const PublishReport published = link.Publish(cycle);
+    log.published = published.admitted;
+    log.refused = published.refused;
+    log.status = cycle.status == 0 && published.admitted == 0 && published.refused > 0
+                     ? kErrorAllRefused
+                     : cycle.status;
+    log.error = log.status == kErrorAllRefused && cycle.status == 0
+                    ? "the safety gate refused every pose of this cycle"
+                    : cycle.error;
+    report.poses_published += published.admitted;
+    report.refused += published.refused;
+    log.ack = link.WaitForAcknowledge(options.ack_timeout);
+    if (log.ack == AckKind::kTimeout) ++report.ack_timeouts;
+    if (log.ack == AckKind::kPeerLost) ++report.peer_lost;
+    log.cycle_ms = MillisecondsSince(cycle_start);
+    report.cycle_ms.push_back(log.cycle_ms);
+    if (options.on_cycle) options.on_cycle(log);
+    idle_since = std::chrono::steady_clock::now();
+    if (log.ack == AckKind::kStop) {
+      report.stopped = true;
+      break;
+    }
+  }
+  report.link = link.Stats();
+  return report;
+}
+
+}  // namespace hnnstereo::robot

@@ -1,0 +1,101 @@
+#include "robot/frame_io.h"
+
+#include <cmath>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <stdexcept>
+
+#include "calib/atomic_file.h"
+
+namespace hnnstereo::robot {
+
+std::string RobotFrame::Check() const {
+  const Eigen::Matrix4d m = robot_from_world.matrix();
+  if (!m.allFinite()) return "robot_from_world is not finite";
+  if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-9) {
+    return "robot_from_world's bottom row must be 0 0 0 1";
+  }
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
+      std::abs(r.determinant() - 1.0) > 1e-6) {
+    return "robot_from_world's rotation is not orthonormal with determinant +1";
+  }
+  SafetyLimits limits;
+  limits.workspace_min = workspace_min;
+  limits.workspace_max = workspace_max;
+  if (auto error = limits.Check(); !error.empty()) return error;
+  if (!std::isfinite(rms_mm) || rms_mm < 0.0) return "rms_mm must be a number >= 0";
+  return {};
+}
+
+RobotFrame LoadRobotFrame(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) {
+    throw std::invalid_argument("frame file '" + path + "' does not exist");
+  }
+  cv::FileStorage storage;
+  try {
+    storage.open(path, cv::FileStorage::READ);
+  } catch (const cv::Exception&) {
+    throw std::invalid_argument("frame file '" + path + "' is not an OpenCV YAML/XML file");
+  }
+  if (!storage.isOpened()) {
+    throw std::invalid_argument("frame file '" + path + "' cannot be read as OpenCV YAML/XML");
+  }
+  auto read = [&](const char* key, int rows, int cols) {
+    cv::Mat m;
+    try {
+      storage[key] >> m;
+    } catch (const cv::Exception&) {
+      m.release();
+    }
+    if (m.empty() || m.rows != rows || m.cols != cols) {
+      throw std::invalid_argument("frame file '" + path + "': '" + key + "' must be a " +
+                                  std::to_string(rows) + "x" + std::to_string(cols) + " matrix");
+    }
+    m.convertTo(m, CV_64F);
+    return m;
+  };
+  RobotFrame frame;
+  Eigen::Matrix4d transform;
+  cv::cv2eigen(read("robot_from_world", 4, 4), transform);
+  frame.robot_from_world.matrix() = transform;
+  cv::cv2eigen(read("workspace_min", 3, 1), frame.workspace_min);
+  cv::cv2eigen(read("workspace_max", 3, 1), frame.workspace_max);
+  if (storage["rms_mm"].empty() || !storage["rms_mm"].isReal()) {
+    throw std::invalid_argument("frame file '" + path + "': 'rms_mm' must be a number");
+  }
+  frame.rms_mm = static_cast<double>(storage["rms_mm"]);
+  if (auto error = frame.Check(); !error.empty()) {
+    throw std::invalid_argument("frame file '" + path + "': " + error);
+  }
+  return frame;
+}
+
+void SaveRobotFrame(const std::string& path, const RobotFrame& frame) {
+  if (auto error = frame.Check(); !error.empty()) throw std::invalid_argument(error);
+  calib::WriteAtomically(path, [&](const std::string& temporary) {
+    cv::FileStorage storage(temporary, cv::FileStorage::WRITE);
+    if (!storage.isOpened()) throw std::runtime_error("cannot write '" + path + "'");
+    cv::Mat transform, min, max;
+    cv::eigen2cv(Eigen::Matrix4d(frame.robot_from_world.matrix()), transform);
+    cv::eigen2cv(frame.workspace_min, min);
+    cv::eigen2cv(frame.workspace_max, max);
+    storage << "robot_from_world" << transform << "workspace_min" << min << "workspace_max" << max
+            << "rms_mm" << frame.rms_mm;
+  });
+}
+
+RobotFrame ThesisRobotFrame() {
+  RobotFrame frame;
+  frame.robot_from_world = Eigen::Isometry3d::Identity();
+  frame.robot_from_world.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
+  frame.robot_from_world.pretranslate(Eigen::Vector3d(600.0, 400.0, 0.0));
+  // Exact half turn (cos pi is not exactly -1 in doubles).
+  frame.robot_from_world.linear() = Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  frame.workspace_min = Eigen::Vector3d(100.0, -300.0, 0.0);
+  frame.workspace_max = Eigen::Vector3d(600.0, 300.0, 450.0);
+  return frame;
+}
+
+}  // namespace hnnstereo::robot

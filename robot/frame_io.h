@@ -1,0 +1,34 @@
+#pragma once
+// FRAME.yml (OpenCV FileStorage, ARCHITECTURE.md): robot_from_world (4x4), workspace_min and
+// workspace_max (3x1, mm, robot frame), rms_mm (residual of the fit that produced it).
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <string>
+
+#include "robot/safety_gate.h"
+
+namespace hnnstereo::robot {
+
+struct RobotFrame {
+  Eigen::Isometry3d robot_from_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d workspace_min = SafetyLimits{}.workspace_min;
+  Eigen::Vector3d workspace_max = SafetyLimits{}.workspace_max;
+  double rms_mm = 0.0;
+  /// Empty when the rotation is orthonormal with determinant +1, the bottom row is 0 0 0 1, the
+  /// workspace box is ordered and everything is finite; else a one-line reason.
+  std::string Check() const;
+};
+
+/// Throws std::invalid_argument naming the file and the problem (missing, unreadable, a key
+/// missing or of the wrong size, not a rigid transform).
+RobotFrame LoadRobotFrame(const std::string& path);
+
+/// Written atomically (a temporary file renamed onto `path`).
+void SaveRobotFrame(const std::string& path, const RobotFrame& frame);
+
+/// The thesis cell's frame (THESIS.md section 5): x_r = 600 - X, y_r = 400 - Y, z_r = Z (mm),
+/// a half turn about z; workspace as given.
+RobotFrame ThesisRobotFrame();
+
+}  // namespace hnnstereo::robot
