@@ -1,13 +1,878 @@
-// PLACEHOLDER - being written (robot link issue); replaced by the real transport.
+// Modbus TCP transports of the robot link (issue 5; docs/robot_modbus.md), on libmodbus 3.1.6.
+//
+// modbus-server://HOST:PORT[?unit=N]  the vision side is a Modbus TCP server the PLC polls.
+//   A background thread serves every connected client (select() over the listening socket and
+//   all clients, as libmodbus's tests/bandwidth-server-many-up.c does), the register mapping
+//   guarded by one mutex. Writes to the command register become events in a queue, so a fast
+//   PLC that writes "acknowledge" and then "trigger" loses neither.
+// modbus-client://HOST:PORT[?unit=N&poll_ms=M]  the vision side writes into the controller's
+//   registers (same map, roles swapped), polling the controller's command register.
+//
+// The register map and the word codec: robot/modbus_registers.h.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <modbus/modbus.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/select.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <set>
 #include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "robot/link.h"
+#include "robot/modbus_registers.h"
 
 namespace hnnstereo::robot {
-std::unique_ptr<RobotLink> MakeModbusServerLink(const LinkUri& uri, SafetyGate, LinkOptions) {
-  throw std::runtime_error(uri.scheme + ": transport not built yet");
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+namespace mb = modbus;
+
+/// Per-transport settings from the URI query (link.h's LinkOptions are shared by all links).
+struct ModbusUriOptions {
+  std::optional<int> unit;  ///< server: answer only this unit id (default: any);
+                            ///< client: unit id sent (default 1)
+  milliseconds poll{20};    ///< client: period of reading the controller's command register
+};
+
+int ParseQueryInt(const LinkUri& uri, const std::string& key, int lowest, int highest) {
+  const std::string& text = uri.query.at(key);
+  int value = 0;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (error != std::errc() || end != text.data() + text.size() || value < lowest ||
+      value > highest) {
+    throw std::invalid_argument("robot URI '" + uri.text + "': " + key + "='" + text +
+                                "' is not a number in " + std::to_string(lowest) + ".." +
+                                std::to_string(highest));
+  }
+  return value;
 }
-std::unique_ptr<RobotLink> MakeModbusClientLink(const LinkUri& uri, SafetyGate, LinkOptions) {
-  throw std::runtime_error(uri.scheme + ": transport not built yet");
+
+ModbusUriOptions ParseModbusQuery(const LinkUri& uri, bool client) {
+  ModbusUriOptions options;
+  for (const auto& [key, value] : uri.query) {
+    if (key == "unit") {
+      options.unit = ParseQueryInt(uri, key, 0, 255);
+    } else if (key == "poll_ms" && client) {
+      options.poll = milliseconds(ParseQueryInt(uri, key, 1, 10000));
+    } else {
+      throw std::invalid_argument("robot URI '" + uri.text + "': unknown query key '" + key +
+                                  "' (" + (client ? "unit, poll_ms" : "unit") + ")");
+    }
+  }
+  return options;
 }
+
+/// "[::1]" -> "::1" (IPv6 literals in a URI are bracketed).
+std::string BareHost(const std::string& host) {
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') {
+    return host.substr(1, host.size() - 2);
+  }
+  return host;
+}
+
+std::uint16_t Word(const std::uint8_t* bytes) {
+  return static_cast<std::uint16_t>((bytes[0] << 8) | bytes[1]);
+}
+
+/// A command written to register 0, in the order the server received it.
+struct CommandEvent {
+  std::uint16_t command = 0;
+  std::uint16_t request_sequence = 0;  ///< register 1 right after the write
+  int connection = -1;                 ///< id of the client that wrote it
+};
+
+// ------------------------------------------------------------------------------------------
+// modbus-server
+// ------------------------------------------------------------------------------------------
+
+class ModbusServerLink final : public RobotLink {
+ public:
+  ModbusServerLink(const LinkUri& uri, SafetyGate gate, LinkOptions options)
+      : RobotLink(std::move(gate), std::move(options)),
+        host_(uri.host),
+        query_(ParseModbusQuery(uri, false)),
+        register_count_(mb::RegisterCount(this->options().max_poses)) {
+    OpenListeningSocket(uri);
+    if (pipe(wake_pipe_) != 0) {
+      close(listen_fd_);
+      throw std::runtime_error("modbus-server: pipe: " + std::string(std::strerror(errno)));
+    }
+    // The context only frames requests and replies on sockets this class accepts; it never
+    // connects anywhere itself.
+    context_ = modbus_new_tcp("127.0.0.1", MODBUS_TCP_DEFAULT_PORT);
+    mapping_ = modbus_mapping_new(0, 0, register_count_, 0);
+    if (context_ == nullptr || mapping_ == nullptr) {
+      CloseAll();
+      throw std::runtime_error("modbus-server: cannot allocate the libmodbus context/mapping");
+    }
+    // A request whose first byte has arrived must be complete within io_timeout.
+    const auto io = this->options().io_timeout.count();
+    modbus_set_byte_timeout(context_, static_cast<std::uint32_t>(io / 1000),
+                            static_cast<std::uint32_t>((io % 1000) * 1000));
+    thread_ = std::thread([this] { Serve(); });
+  }
+
+  ~ModbusServerLink() override {
+    stopping_ = true;
+    const char byte = 0;
+    if (write(wake_pipe_[1], &byte, 1) < 0) {
+      // Nothing to do: the select() timeout (heartbeat period) ends the thread anyway.
+    }
+    if (thread_.joinable()) thread_.join();
+    CloseAll();
+  }
+
+  std::string Describe() const override {
+    return "modbus-server://" + host_ + ":" + std::to_string(port_);
+  }
+
+  Trigger WaitForTrigger(milliseconds timeout) override {
+    const auto deadline = Clock::now() + timeout;
+    std::unique_lock lock(mutex_);
+    while (true) {
+      while (!events_.empty()) {
+        const CommandEvent event = PopEventLocked();
+        switch (event.command) {
+          case mb::kCommandTrigger:
+            if (IsDuplicateLocked(event.request_sequence)) continue;
+            return AcceptTriggerLocked(event);
+          case mb::kCommandStop:
+            return {TriggerKind::kStop, event.request_sequence};
+          case mb::kCommandAcknowledge:
+            // A late acknowledge (the loop stopped waiting for it) or a PLC's retry of one.
+            if (result_pending_) ClearResultLocked();
+            continue;
+          default:
+            MalformedLocked(event);
+            continue;
+        }
+      }
+      if (changed_.wait_until(lock, deadline) == std::cv_status::timeout && events_.empty()) {
+        return {TriggerKind::kIdle, 0};
+      }
+    }
+  }
+
+  AckKind WaitForAcknowledge(milliseconds timeout) override {
+    const auto deadline = Clock::now() + timeout;
+    std::unique_lock lock(mutex_);
+    while (true) {
+      while (!events_.empty()) {
+        const CommandEvent& next = events_.front();
+        if (next.command == mb::kCommandTrigger && !IsDuplicateLocked(next.request_sequence)) {
+          // The PLC moved on to a new request without acknowledging this one: the result was
+          // not acknowledged; the trigger stays queued for the next WaitForTrigger.
+          Log("modbus-server: new trigger (request " + std::to_string(next.request_sequence) +
+              ") before the acknowledge of request " + std::to_string(served_sequence_));
+          return AckKind::kTimeout;
+        }
+        const CommandEvent event = PopEventLocked();
+        switch (event.command) {
+          case mb::kCommandTrigger:
+            continue;  // a retry of the trigger being served (counted as duplicate above)
+          case mb::kCommandAcknowledge:
+            ClearResultLocked();
+            return AckKind::kAcknowledged;
+          case mb::kCommandStop:
+            ClearResultLocked();
+            return AckKind::kStop;
+          default:
+            MalformedLocked(event);
+            continue;
+        }
+      }
+      if (result_dropped_ || (result_pending_ && owner_lost_)) return AckKind::kPeerLost;
+      if (changed_.wait_until(lock, deadline) == std::cv_status::timeout && events_.empty()) {
+        if (result_dropped_ || (result_pending_ && owner_lost_)) return AckKind::kPeerLost;
+        return AckKind::kTimeout;
+      }
+    }
+  }
+
+  void SendCellCommand(CellCommand command) override {
+    if (command != CellCommand::kStop) {
+      throw std::runtime_error(std::string("modbus-server: cell command '") +
+                               CellCommandName(command) + "' is not supported by modbus");
+    }
+    std::lock_guard lock(mutex_);
+    ClearResultLocked();
+  }
+
+  LinkStats Stats() const override {
+    std::lock_guard lock(mutex_);
+    return stats_;
+  }
+
+ protected:
+  void Send(const CycleResult& admitted) override {
+    // Encode first: a value that does not fit is refused before any register changes.
+    const bool error = admitted.status < 0;
+    std::vector<std::array<std::uint16_t, mb::kWordsPerPose>> poses;
+    if (!error) {
+      for (const PickCommand& pick : admitted.picks) poses.push_back(mb::EncodePose(pick));
+    }
+    const std::uint16_t status =
+        mb::EncodeStatus(error ? admitted.status : mb::kStatusResultReady);
+    std::lock_guard lock(mutex_);
+    std::uint16_t* registers = mapping_->tab_registers;
+    ZeroPosesLocked();
+    registers[mb::kResultSequenceRegister] =
+        static_cast<std::uint16_t>(admitted.request_sequence & 0xFFFFu);
+    registers[mb::kPoseCountRegister] = static_cast<std::uint16_t>(poses.size());
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      std::copy(poses[i].begin(), poses[i].end(),
+                registers + mb::kFirstPoseRegister +
+                    static_cast<std::size_t>(mb::kWordsPerPose) * i);
+    }
+    registers[mb::kStatusRegister] = status;
+    result_pending_ = true;
+    result_dropped_ = false;
+    ++stats_.cycles_published;
+    stats_.poses_sent += static_cast<int>(poses.size());
+  }
+
+ private:
+  struct Connection {
+    int fd = -1;
+    int id = 0;
+  };
+
+  void OpenListeningSocket(const LinkUri& uri) {
+    addrinfo hints{};
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_PASSIVE;
+    addrinfo* found = nullptr;
+    const std::string port_text = std::to_string(uri.port);
+    const std::string host = BareHost(uri.host);
+    if (const int rc = getaddrinfo(host.c_str(), port_text.c_str(), &hints, &found); rc != 0) {
+      throw std::runtime_error("modbus-server: cannot resolve '" + host + "': " +
+                               gai_strerror(rc));
+    }
+    std::string last_error = "no address";
+    for (addrinfo* address = found; address != nullptr; address = address->ai_next) {
+      const int fd = socket(address->ai_family, address->ai_socktype | SOCK_CLOEXEC,
+                            address->ai_protocol);
+      if (fd < 0) {
+        last_error = std::strerror(errno);
+        continue;
+      }
+      const int yes = 1;
+      setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, 16) != 0) {
+        last_error = std::strerror(errno);
+        close(fd);
+        continue;
+      }
+      listen_fd_ = fd;
+      break;
+    }
+    freeaddrinfo(found);
+    if (listen_fd_ < 0) {
+      throw std::runtime_error("modbus-server: cannot listen on " + uri.host + ":" + port_text +
+                               ": " + last_error);
+    }
+    sockaddr_storage bound{};
+    socklen_t length = sizeof(bound);
+    getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&bound), &length);
+    port_ = bound.ss_family == AF_INET6
+                ? ntohs(reinterpret_cast<sockaddr_in6*>(&bound)->sin6_port)
+                : ntohs(reinterpret_cast<sockaddr_in*>(&bound)->sin_port);
+  }
+
+  void CloseAll() {
+    for (const Connection& connection : connections_) close(connection.fd);
+    connections_.clear();
+    if (listen_fd_ >= 0) close(listen_fd_);
+    listen_fd_ = -1;
+    for (int& fd : wake_pipe_) {
+      if (fd >= 0) close(fd);
+      fd = -1;
+    }
+    if (context_ != nullptr) {
+      modbus_set_socket(context_, -1);
+      modbus_free(context_);
+      context_ = nullptr;
+    }
+    if (mapping_ != nullptr) modbus_mapping_free(mapping_);
+    mapping_ = nullptr;
+  }
+
+  // The server thread: accepts clients, answers requests, counts the heartbeat.
+  void Serve() {
+    std::uint8_t request[MODBUS_TCP_MAX_ADU_LENGTH];
+    const milliseconds period = options().heartbeat_period;
+    auto next_heartbeat = Clock::now() + period;
+    while (!stopping_) {
+      fd_set readable;
+      FD_ZERO(&readable);
+      FD_SET(listen_fd_, &readable);
+      FD_SET(wake_pipe_[0], &readable);
+      int highest = std::max(listen_fd_, wake_pipe_[0]);
+      for (const Connection& connection : connections_) {
+        FD_SET(connection.fd, &readable);
+        highest = std::max(highest, connection.fd);
+      }
+      const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(
+          std::max(next_heartbeat - Clock::now(), Clock::duration::zero()));
+      timeval timeout{static_cast<time_t>(wait.count() / 1000000),
+                      static_cast<suseconds_t>(wait.count() % 1000000)};
+      const int ready = select(highest + 1, &readable, nullptr, nullptr, &timeout);
+      if (ready < 0 && errno != EINTR) {
+        Log("modbus-server: select failed: " + std::string(std::strerror(errno)));
+        std::this_thread::sleep_for(milliseconds(10));
+        continue;
+      }
+      if (Clock::now() >= next_heartbeat) {
+        std::lock_guard lock(mutex_);
+        // Wraps 65535 -> 0 by unsigned arithmetic.
+        ++mapping_->tab_registers[mb::kHeartbeatRegister];
+        next_heartbeat += period;
+        if (next_heartbeat < Clock::now()) next_heartbeat = Clock::now() + period;
+      }
+      if (ready <= 0 || stopping_) continue;
+      for (std::size_t i = 0; i < connections_.size();) {
+        const Connection connection = connections_[i];
+        if (!FD_ISSET(connection.fd, &readable)) {
+          ++i;
+          continue;
+        }
+        modbus_set_socket(context_, connection.fd);
+        const int length = modbus_receive(context_, request);
+        if (length > 0) {
+          Answer(request, length, connection.id);
+          ++i;
+        } else if (length < 0) {
+          Disconnected(connection);
+          connections_.erase(connections_.begin() + static_cast<std::ptrdiff_t>(i));
+        } else {
+          ++i;  // a request libmodbus ignored (not for this server)
+        }
+      }
+      // After the reads, so a PLC's old connection closing and its new one arriving in the same
+      // round are seen in that order (the reconnect rule needs the old one gone).
+      if (FD_ISSET(listen_fd_, &readable)) Accept();
+    }
+  }
+
+  void Accept() {
+    const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+    if (fd < 0) return;
+    if (fd >= FD_SETSIZE) {  // select() cannot watch it
+      Log("modbus-server: too many connections; refusing one");
+      close(fd);
+      return;
+    }
+    const int yes = 1;
+    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof(yes));
+    const int id = ++last_connection_id_;
+    connections_.push_back({fd, id});
+    std::lock_guard lock(mutex_);
+    ++stats_.connections;
+    if (stats_.connections > 1) ++stats_.reconnects;
+    live_connections_.insert(id);
+    // A PLC that lost its connection while a result was pending comes back and triggers again;
+    // the stale result must not be picked (docs/robot_modbus.md, "Reconnects").
+    if (result_pending_ && owner_lost_) {
+      const int poses = mapping_->tab_registers[mb::kPoseCountRegister];
+      ClearResultLocked();
+      result_dropped_ = true;
+      ++stats_.dropped_on_reconnect;
+      // The request may be triggered again under the same sequence: nothing was acknowledged.
+      served_sequence_valid_ = false;
+      Log("modbus-server: client reconnected while the result of request " +
+          std::to_string(served_sequence_) + " (" + std::to_string(poses) +
+          " poses) was pending; dropped it");
+    }
+    changed_.notify_all();
+  }
+
+  void Disconnected(const Connection& connection) {
+    close(connection.fd);
+    std::lock_guard lock(mutex_);
+    live_connections_.erase(connection.id);
+    if (connection.id == trigger_owner_) owner_lost_ = true;
+    changed_.notify_all();
+  }
+
+  void Answer(const std::uint8_t* request, int length, int connection) {
+    const int header = modbus_get_header_length(context_);
+    const std::uint8_t unit = request[header - 1];
+    if (query_.unit && unit != *query_.unit) {
+      modbus_reply_exception(context_, request, MODBUS_EXCEPTION_GATEWAY_TARGET);
+      return;
+    }
+    const bool writes_command = WritesCommandRegister(request + header, length - header);
+    std::lock_guard lock(mutex_);
+    modbus_reply(context_, request, length, mapping_);
+    if (!writes_command) return;
+    const std::uint16_t command = mapping_->tab_registers[mb::kCommandRegister];
+    if (command == mb::kCommandNone) return;
+    if (events_.size() >= kMaxQueuedCommands) {
+      ++stats_.malformed;
+      Log("modbus-server: more than " + std::to_string(kMaxQueuedCommands) +
+          " commands unconsumed; dropping the oldest");
+      events_.pop_front();
+    }
+    events_.push_back(
+        {command, mapping_->tab_registers[mb::kRequestSequenceRegister], connection});
+    changed_.notify_all();
+  }
+
+  /// True when the PDU (function code onward) is a write that succeeds and covers register 0.
+  bool WritesCommandRegister(const std::uint8_t* pdu, int length) const {
+    if (length < 5) return false;
+    int address = 0;
+    int count = 1;
+    switch (pdu[0]) {
+      case MODBUS_FC_WRITE_SINGLE_REGISTER:
+      case MODBUS_FC_MASK_WRITE_REGISTER:
+        address = Word(pdu + 1);
+        break;
+      case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
+        address = Word(pdu + 1);
+        count = Word(pdu + 3);
+        break;
+      case MODBUS_FC_WRITE_AND_READ_REGISTERS:
+        if (length < 9) return false;
+        address = Word(pdu + 5);
+        count = Word(pdu + 7);
+        break;
+      default:
+        return false;
+    }
+    return address == mb::kCommandRegister && count >= 1 && count <= MODBUS_MAX_WRITE_REGISTERS &&
+           address + count <= register_count_;
+  }
+
+  CommandEvent PopEventLocked() {
+    CommandEvent event = events_.front();
+    events_.pop_front();
+    // Register 0 reads back 0 once every command written has been consumed.
+    if (events_.empty()) mapping_->tab_registers[mb::kCommandRegister] = mb::kCommandNone;
+    return event;
+  }
+
+  bool IsDuplicateLocked(std::uint16_t request_sequence) {
+    if (!served_sequence_valid_ || request_sequence != served_sequence_) return false;
+    ++stats_.duplicate_triggers;
+    Log("modbus-server: trigger repeats request " + std::to_string(request_sequence) +
+        " already served; ignored");
+    return true;
+  }
+
+  Trigger AcceptTriggerLocked(const CommandEvent& event) {
+    served_sequence_ = event.request_sequence;
+    served_sequence_valid_ = true;
+    ++stats_.triggers;
+    trigger_owner_ = event.connection;
+    owner_lost_ = live_connections_.count(event.connection) == 0;
+    ClearResultLocked();
+    mapping_->tab_registers[mb::kStatusRegister] = mb::EncodeStatus(mb::kStatusBusy);
+    return {TriggerKind::kTrigger, event.request_sequence};
+  }
+
+  void MalformedLocked(const CommandEvent& event) {
+    ++stats_.malformed;
+    Log("modbus-server: unknown command " + std::to_string(event.command) +
+        " in register 0 (1 trigger, 2 acknowledge, 99 stop); ignored");
+    // A pending result stays readable; otherwise the PLC sees the error until its next trigger.
+    if (!result_pending_) {
+      mapping_->tab_registers[mb::kStatusRegister] = mb::EncodeStatus(kErrorMalformedRequest);
+    }
+  }
+
+  void ZeroPosesLocked() {
+    std::fill(mapping_->tab_registers + mb::kFirstPoseRegister,
+              mapping_->tab_registers + register_count_, std::uint16_t{0});
+  }
+
+  /// Status idle, no poses; the result (if any) is gone.
+  void ClearResultLocked() {
+    ZeroPosesLocked();
+    mapping_->tab_registers[mb::kPoseCountRegister] = 0;
+    mapping_->tab_registers[mb::kStatusRegister] = mb::EncodeStatus(mb::kStatusIdle);
+    result_pending_ = false;
+  }
+
+  static constexpr std::size_t kMaxQueuedCommands = 64;
+
+  std::string host_;
+  ModbusUriOptions query_;
+  int register_count_ = 0;
+  int port_ = 0;
+  int listen_fd_ = -1;
+  int wake_pipe_[2] = {-1, -1};
+  modbus_t* context_ = nullptr;          // server thread only (after construction)
+  std::vector<Connection> connections_;  // server thread only
+  int last_connection_id_ = 0;           // server thread only
+  std::atomic<bool> stopping_{false};
+  std::thread thread_;
+
+  mutable std::mutex mutex_;  // guards everything below and the mapping's registers
+  std::condition_variable changed_;
+  modbus_mapping_t* mapping_ = nullptr;
+  std::deque<CommandEvent> events_;
+  std::set<int> live_connections_;
+  int trigger_owner_ = -1;    ///< connection that sent the trigger being served
+  bool owner_lost_ = false;   ///< ... and has disconnected since
+  bool result_pending_ = false;  ///< a result is in the registers, not yet acknowledged
+  bool result_dropped_ = false;  ///< the last result was dropped on a reconnect
+  std::uint16_t served_sequence_ = 0;
+  bool served_sequence_valid_ = false;
+  LinkStats stats_;
+};
+
+// ------------------------------------------------------------------------------------------
+// modbus-client
+// ------------------------------------------------------------------------------------------
+
+class ModbusClientLink final : public RobotLink {
+ public:
+  ModbusClientLink(const LinkUri& uri, SafetyGate gate, LinkOptions options)
+      : RobotLink(std::move(gate), std::move(options)),
+        uri_(uri),
+        query_(ParseModbusQuery(uri, true)),
+        register_count_(mb::RegisterCount(this->options().max_poses)),
+        backoff_(this->options().reconnect_backoff_min) {
+    const std::string host = BareHost(uri.host);
+    const std::string port = std::to_string(uri.port);
+    context_ = modbus_new_tcp_pi(host.c_str(), port.c_str());
+    if (context_ == nullptr) {
+      throw std::runtime_error("modbus-client: cannot create a context for " + uri.text);
+    }
+    const auto io = this->options().io_timeout.count();
+    modbus_set_response_timeout(context_, static_cast<std::uint32_t>(io / 1000),
+                                static_cast<std::uint32_t>((io % 1000) * 1000));
+    modbus_set_slave(context_, query_.unit.value_or(1));
+    // Fail fast when the controller is not there at start (a typo in the URI); later losses
+    // are retried with backoff.
+    if (modbus_connect(context_) != 0) {
+      const std::string reason = modbus_strerror(errno);
+      modbus_free(context_);
+      throw std::runtime_error("modbus-client: cannot connect to " + uri.host + ":" + port +
+                               ": " + reason);
+    }
+    connected_ = true;
+    stats_.connections = 1;
+    heartbeat_thread_ = std::thread([this] { Heartbeat(); });
+  }
+
+  ~ModbusClientLink() override {
+    {
+      std::lock_guard lock(mutex_);
+      stopping_ = true;
+    }
+    stop_changed_.notify_all();
+    if (heartbeat_thread_.joinable()) heartbeat_thread_.join();
+    modbus_close(context_);
+    modbus_free(context_);
+  }
+
+  std::string Describe() const override {
+    return "modbus-client://" + uri_.host + ":" + std::to_string(uri_.port);
+  }
+
+  Trigger WaitForTrigger(milliseconds timeout) override {
+    const auto deadline = Clock::now() + timeout;
+    while (true) {
+      {
+        std::lock_guard lock(mutex_);
+        std::uint16_t words[2];
+        if (ReadLocked(mb::kCommandRegister, 2, words)) {
+          const std::uint16_t command = words[0];
+          const std::uint16_t sequence = words[1];
+          if (command == mb::kCommandTrigger) {
+            if (IsDuplicateLocked(sequence)) {
+              WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+            } else if (ClearResultLocked(mb::kStatusBusy) &&
+                       WriteLocked(mb::kCommandRegister, mb::kCommandNone)) {
+              served_sequence_ = sequence;
+              served_sequence_valid_ = true;
+              ++stats_.triggers;
+              return {TriggerKind::kTrigger, sequence};
+            }
+          } else if (command == mb::kCommandStop) {
+            WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+            return {TriggerKind::kStop, sequence};
+          } else if (command == mb::kCommandAcknowledge) {
+            // A late acknowledge (the loop stopped waiting) or a retried one.
+            if (result_pending_) ClearResultLocked(mb::kStatusIdle);
+            WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+          } else if (command != mb::kCommandNone) {
+            MalformedLocked(command);
+          }
+        }
+      }
+      if (Clock::now() >= deadline) return {TriggerKind::kIdle, 0};
+      SleepUntilNextPoll(deadline);
+    }
+  }
+
+  AckKind WaitForAcknowledge(milliseconds timeout) override {
+    const auto deadline = Clock::now() + timeout;
+    while (true) {
+      {
+        std::lock_guard lock(mutex_);
+        if (lost_pending_) {
+          lost_pending_ = false;
+          return AckKind::kPeerLost;
+        }
+        std::uint16_t words[2];
+        if (ReadLocked(mb::kCommandRegister, 2, words)) {
+          const std::uint16_t command = words[0];
+          if (command == mb::kCommandAcknowledge) {
+            if (ClearResultLocked(mb::kStatusIdle) &&
+                WriteLocked(mb::kCommandRegister, mb::kCommandNone)) {
+              return AckKind::kAcknowledged;
+            }
+          } else if (command == mb::kCommandStop) {
+            ClearResultLocked(mb::kStatusIdle);
+            WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+            return AckKind::kStop;
+          } else if (command == mb::kCommandTrigger) {
+            if (IsDuplicateLocked(words[1])) {
+              WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+            } else {
+              Log("modbus-client: new trigger (request " + std::to_string(words[1]) +
+                  ") before the acknowledge of request " + std::to_string(served_sequence_));
+              return AckKind::kTimeout;  // the trigger stays for the next WaitForTrigger
+            }
+          } else if (command != mb::kCommandNone) {
+            MalformedLocked(command);
+          }
+        }
+        if (lost_pending_) {
+          lost_pending_ = false;
+          return AckKind::kPeerLost;
+        }
+      }
+      if (Clock::now() >= deadline) return AckKind::kTimeout;
+      SleepUntilNextPoll(deadline);
+    }
+  }
+
+  void SendCellCommand(CellCommand command) override {
+    if (command != CellCommand::kStop) {
+      throw std::runtime_error(std::string("modbus-client: cell command '") +
+                               CellCommandName(command) + "' is not supported by modbus");
+    }
+    std::lock_guard lock(mutex_);
+    result_pending_ = false;
+    std::vector<std::uint16_t> zeros(static_cast<std::size_t>(mb::kWordsPerPose) *
+                                     static_cast<std::size_t>(options().max_poses));
+    // Best effort: when the controller is unreachable there is nothing to clear there, and
+    // the next connection starts without a result anyway.
+    if (ClearResultLocked(mb::kStatusIdle)) WritePosesLocked(zeros);
+  }
+
+  LinkStats Stats() const override {
+    std::lock_guard lock(mutex_);
+    return stats_;
+  }
+
+ protected:
+  void Send(const CycleResult& admitted) override {
+    const bool error = admitted.status < 0;
+    std::vector<std::uint16_t> pose_words;
+    if (!error) {
+      for (const PickCommand& pick : admitted.picks) {
+        const auto words = mb::EncodePose(pick);
+        pose_words.insert(pose_words.end(), words.begin(), words.end());
+      }
+    }
+    const std::uint16_t status =
+        mb::EncodeStatus(error ? admitted.status : mb::kStatusResultReady);
+    const int poses = static_cast<int>(pose_words.size()) / mb::kWordsPerPose;
+    std::lock_guard lock(mutex_);
+    result_pending_ = true;  // from here a lost connection drops (and counts) this result
+    lost_pending_ = false;
+    const std::uint16_t header[2] = {
+        static_cast<std::uint16_t>(admitted.request_sequence & 0xFFFFu),
+        static_cast<std::uint16_t>(poses)};
+    // Sequence, count and poses first; status last, so the controller never sees "result
+    // ready" over a half-written result.
+    const bool written = WriteBlockLocked(mb::kResultSequenceRegister, header, 2) &&
+                         WritePosesLocked(pose_words) &&
+                         WriteLocked(mb::kStatusRegister, status);
+    if (!written) {
+      if (result_pending_) DropPendingLocked();  // not connected at all: nothing was written
+      Log("modbus-client: result of request " + std::to_string(admitted.request_sequence) +
+          " not written (controller unreachable); dropped");
+      return;
+    }
+    ++stats_.cycles_published;
+    stats_.poses_sent += poses;
+  }
+
+ private:
+  void SleepUntilNextPoll(Clock::time_point deadline) {
+    std::this_thread::sleep_until(std::min(Clock::now() + query_.poll, deadline));
+  }
+
+  void Heartbeat() {
+    std::unique_lock lock(mutex_);
+    auto next = Clock::now() + options().heartbeat_period;
+    while (!stopping_) {
+      if (stop_changed_.wait_until(lock, next, [this] { return stopping_; })) break;
+      next += options().heartbeat_period;
+      if (next < Clock::now()) next = Clock::now() + options().heartbeat_period;
+      const auto word = static_cast<std::uint16_t>(heartbeat_ + 1);  // wraps 65535 -> 0
+      if (WriteLocked(mb::kHeartbeatRegister, word)) heartbeat_ = word;
+    }
+  }
+
+  /// Connects when not connected and the backoff allows. False: no connection now.
+  bool EnsureConnectedLocked() {
+    if (connected_) return true;
+    if (Clock::now() < next_attempt_) return false;
+    if (modbus_connect(context_) != 0) {
+      const std::string reason = modbus_strerror(errno);
+      modbus_close(context_);
+      next_attempt_ = Clock::now() + backoff_;
+      Log("modbus-client: reconnect to " + uri_.host + ":" + std::to_string(uri_.port) +
+          " failed (" + reason + "); next try in " + std::to_string(backoff_.count()) + " ms");
+      backoff_ = std::min(backoff_ * 2, options().reconnect_backoff_max);
+      return false;
+    }
+    connected_ = true;
+    backoff_ = options().reconnect_backoff_min;
+    ++stats_.connections;
+    ++stats_.reconnects;
+    Log("modbus-client: reconnected to " + uri_.host + ":" + std::to_string(uri_.port));
+    if (clear_on_reconnect_) {
+      // The result pending at the loss was dropped: tell the controller there is none, so it
+      // triggers again (status idle, no poses).
+      const std::uint16_t zero = 0;
+      if (WriteBlockLocked(mb::kPoseCountRegister, &zero, 1) &&
+          WriteBlockLocked(mb::kStatusRegister, &zero, 1)) {
+        clear_on_reconnect_ = false;
+      }
+    }
+    return connected_;
+  }
+
+  void LostLocked(const std::string& what) {
+    Log("modbus-client: " + what + " failed: " + modbus_strerror(errno) + "; reconnecting");
+    modbus_close(context_);
+    connected_ = false;
+    next_attempt_ = Clock::now() + backoff_;
+    backoff_ = std::min(backoff_ * 2, options().reconnect_backoff_max);
+    if (result_pending_) DropPendingLocked();
+  }
+
+  void DropPendingLocked() {
+    result_pending_ = false;
+    lost_pending_ = true;
+    clear_on_reconnect_ = true;
+    // A reconnected controller triggers again; the same request sequence is served anew,
+    // since nothing of this result was acknowledged.
+    served_sequence_valid_ = false;
+    ++stats_.dropped_on_reconnect;
+  }
+
+  bool ReadLocked(int address, int count, std::uint16_t* words) {
+    if (!EnsureConnectedLocked()) return false;
+    if (modbus_read_registers(context_, address, count, words) == count) return true;
+    LostLocked("reading registers " + std::to_string(address) + ".." +
+               std::to_string(address + count - 1));
+    return false;
+  }
+
+  bool WriteBlockLocked(int address, const std::uint16_t* words, int count) {
+    if (!EnsureConnectedLocked()) return false;
+    if (modbus_write_registers(context_, address, count, words) == count) return true;
+    LostLocked("writing registers " + std::to_string(address) + ".." +
+               std::to_string(address + count - 1));
+    return false;
+  }
+
+  bool WriteLocked(int address, std::uint16_t word) { return WriteBlockLocked(address, &word, 1); }
+
+  bool WritePosesLocked(const std::vector<std::uint16_t>& words) {
+    // At most 123 registers per request (Modbus application protocol v1.1b3, 6.12): whole poses.
+    constexpr std::size_t kChunk = (MODBUS_MAX_WRITE_REGISTERS / mb::kWordsPerPose) * mb::kWordsPerPose;
+    for (std::size_t start = 0; start < words.size(); start += kChunk) {
+      const std::size_t count = std::min(kChunk, words.size() - start);
+      if (!WriteBlockLocked(mb::kFirstPoseRegister + static_cast<int>(start), words.data() + start,
+                            static_cast<int>(count))) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  /// Pose count 0, then `status`. False when the controller could not be written.
+  bool ClearResultLocked(int status) {
+    result_pending_ = false;
+    return WriteLocked(mb::kPoseCountRegister, 0) &&
+           WriteLocked(mb::kStatusRegister, mb::EncodeStatus(status));
+  }
+
+  bool IsDuplicateLocked(std::uint16_t request_sequence) {
+    if (!served_sequence_valid_ || request_sequence != served_sequence_) return false;
+    ++stats_.duplicate_triggers;
+    Log("modbus-client: trigger repeats request " + std::to_string(request_sequence) +
+        " already served; ignored");
+    return true;
+  }
+
+  void MalformedLocked(std::uint16_t command) {
+    ++stats_.malformed;
+    Log("modbus-client: unknown command " + std::to_string(command) +
+        " in register 0 (1 trigger, 2 acknowledge, 99 stop); ignored");
+    if (!result_pending_) WriteLocked(mb::kStatusRegister, mb::EncodeStatus(kErrorMalformedRequest));
+    WriteLocked(mb::kCommandRegister, mb::kCommandNone);
+  }
+
+  LinkUri uri_;
+  ModbusUriOptions query_;
+  int register_count_ = 0;
+
+  mutable std::mutex mutex_;  // guards the context (libmodbus is not thread-safe) and below
+  std::condition_variable stop_changed_;
+  modbus_t* context_ = nullptr;
+  bool connected_ = false;
+  bool stopping_ = false;
+  milliseconds backoff_;
+  Clock::time_point next_attempt_{};
+  bool result_pending_ = false;      ///< a result is in the controller, not yet acknowledged
+  bool lost_pending_ = false;        ///< the connection was lost with a result pending
+  bool clear_on_reconnect_ = false;  ///< tell the controller its result is gone
+  std::uint16_t heartbeat_ = 0;
+  std::uint16_t served_sequence_ = 0;
+  bool served_sequence_valid_ = false;
+  LinkStats stats_;
+  std::thread heartbeat_thread_;
+};
+
+}  // namespace
+
+std::unique_ptr<RobotLink> MakeModbusServerLink(const LinkUri& uri, SafetyGate gate,
+                                                LinkOptions options) {
+  return std::make_unique<ModbusServerLink>(uri, std::move(gate), std::move(options));
+}
+
+std::unique_ptr<RobotLink> MakeModbusClientLink(const LinkUri& uri, SafetyGate gate,
+                                                LinkOptions options) {
+  return std::make_unique<ModbusClientLink>(uri, std::move(gate), std::move(options));
+}
+
 }  // namespace hnnstereo::robot
