@@ -13,5 +13,7 @@ void AddPickCommand(CLI::App& app);
 void AddDemoCommand(CLI::App& app);
 void AddProbeCommand(CLI::App& app);
 void AddEvalCommand(CLI::App& app);
+void AddServeCommand(CLI::App& app);
+void AddRobotCommand(CLI::App& app);
 
 }  // namespace hnnstereo::app

@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddEvalCommand(app);
   hnnstereo::app::AddRenderCommand(app);
   hnnstereo::app::AddPickCommand(app);
+  hnnstereo::app::AddServeCommand(app);
+  hnnstereo::app::AddRobotCommand(app);
   hnnstereo::app::AddDemoCommand(app);
   hnnstereo::app::AddProbeCommand(app);
   try {

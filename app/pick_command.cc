@@ -1,15 +1,16 @@
 // `hnnstereo pick`: stereo pair -> parts' top-face centroid, height and yaw (OBJECTS.json).
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
 
+#include "app/cell_sensing.h"
 #include "app/cli_support.h"
+#include "app/robot_link_flags.h"
 #include "app/commands.h"
 #include "calib/atomic_file.h"
 #include "calib/calibration.h"
-#include "vision/image.h"
-#include "vision/lens_distortion.h"
 #include "vision/overlay.h"
 #include "vision/plots.h"
 #include "vision/ply.h"
@@ -19,62 +20,33 @@ namespace hnnstereo::app {
 namespace {
 
 struct PickArgs {
-  std::string left, right, calib, out, overlay, ply, histogram, energy_plot, robot, frame;
-  std::string clustering = "grid";
-  std::string yaw = "rectangle";
+  std::string left, right, calib, out, overlay, ply, histogram, energy_plot;
   bool quiet = false;
   std::string config;  // consumed by ExpandConfigArguments in main
-  vision::PositionSensingOptions sensing;
-  MatcherFlags flags;
+  CellSensingFlags cell;
+  RobotLinkFlags link;
 };
 
 void RunPick(PickArgs& args) {
-  if (!args.robot.empty() || !args.frame.empty()) {
-    throw std::invalid_argument(
-        "--robot/--frame are not available in pick yet; use the robot commands for the link");
+  args.cell.Resolve();
+  if (!args.link.frame.empty() && args.link.robot.empty()) {
+    throw std::invalid_argument("--frame is used with --robot URI (the link to send the picks to)");
   }
-  args.flags.Resolve();
-  args.flags.UseFeatureNetworkUnlessRectified(false);  // pick cells are calibrated, unrectified
-  args.sensing.matcher = args.flags.options;
-  if (auto method = vision::ParseClusteringMethod(args.clustering)) {
-    args.sensing.clustering = *method;
-  } else {
-    throw std::invalid_argument("unknown --clustering '" + args.clustering + "' (grid or thesis)");
-  }
-  if (auto method = vision::ParseYawMethod(args.yaw)) {
-    args.sensing.pose.yaw_method = *method;
-  } else {
-    throw std::invalid_argument("unknown --yaw '" + args.yaw + "' (rectangle or moments)");
-  }
-  if (const std::string problem = args.sensing.Check(); !problem.empty()) {
-    throw std::invalid_argument(problem);
-  }
-  const vision::LoadedImage left = vision::LoadImage(args.left);
-  const vision::LoadedImage right = vision::LoadImage(args.right);
-  vision::CheckSameSize(left, right);
+  // Open the link (and read FRAME.yml) before the slow part, so a bad URI or frame fails fast.
+  robot::RobotFrame frame;
+  std::unique_ptr<robot::RobotLink> link;
+  if (!args.link.robot.empty()) link = args.link.Open(&frame);
   const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
-  if (calibration.image_width > 0 &&
-      (calibration.image_width != left.grey.cols || calibration.image_height != left.grey.rows)) {
-    throw std::invalid_argument("calibration '" + args.calib + "' is for " +
-                                std::to_string(calibration.image_width) + "x" +
-                                std::to_string(calibration.image_height) + " images, the pair is " +
-                                std::to_string(left.grey.cols) + "x" +
-                                std::to_string(left.grey.rows));
-  }
-  // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
-  // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
-  cv::Mat left_grey = left.grey, right_grey = right.grey;
-  if (calibration.intrinsics && !calibration.intrinsics->D1.empty()) {
-    left_grey = vision::UndistortImage(left.grey, calibration.intrinsics->K1, calibration.intrinsics->D1);
-    right_grey = vision::UndistortImage(right.grey, calibration.intrinsics->K2, calibration.intrinsics->D2);
-  }
   std::unique_ptr<ocl::Runtime> runtime =
-      OpenRuntimeFor(args.sensing.matcher.engine, args.flags.device);
-  const vision::PositionSensingReport report =
-      vision::SensePositions(left_grey, right_grey, calibration, args.sensing, runtime.get());
+      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+  const SensedPair pair =
+      SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
+  const vision::PositionSensingReport& report = pair.report;
+  const cv::Mat& left_grey = pair.left_grey;
+  const vision::LoadedImage& left = pair.left;
 
   // Everything is computed before anything is written; each file is written atomically.
-  nlohmann::json json = vision::ObjectsJson(report, args.sensing);
+  nlohmann::json json = vision::ObjectsJson(report, args.cell.sensing);
   json["left"] = args.left;
   json["right"] = args.right;
   json["calib"] = args.calib;
@@ -103,6 +75,28 @@ void RunPick(PickArgs& args) {
   if (!report.match.engine_notice.empty()) {
     std::cerr << "hnnstereo: notice: " << report.match.engine_notice << "\n";
   }
+  if (link) {
+    // One cycle through the link: push transports send at once, polled ones (Modbus server,
+    // vision server) wait for the robot side's trigger up to --ack-timeout.
+    const auto objects = SensedObjectsOf(report);
+    const double capture_time_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    robot::CellLoopOptions loop = args.link.LoopOptions();
+    loop.cycles = 1;
+    loop.idle_limit = loop.ack_timeout;
+    loop.stop_requested = InstallStopSignals();
+    if (!args.quiet) {
+      std::printf("link: %s\n", link->Describe().c_str());
+      std::fflush(stdout);
+      loop.on_cycle = PrintCycleLine;
+    }
+    const robot::CellLoopReport sent = robot::RunCellLoop(
+        *link, frame, [&] { return robot::SensedCycle{objects, capture_time_s}; }, loop);
+    if (sent.idle_timeout) {
+      throw std::runtime_error("no trigger from " + link->Describe() + " within --ack-timeout " +
+                               "(OBJECTS.json was written; nothing was sent)");
+    }
+  }
   if (args.quiet) return;
   const auto& t = report.triangulation;
   std::printf(
@@ -110,8 +104,8 @@ void RunPick(PickArgs& args) {
       "camera, %d residual > %.1f px, %d degenerate) -> %zu parts (%s clustering)\n",
       report.match.matches.size(), t.accepted, t.edge_along_epipolar, t.behind_camera,
       t.large_residual,
-      args.sensing.max_reprojection_error_px, t.degenerate, report.objects.size(),
-      args.clustering.c_str());
+      args.cell.sensing.max_reprojection_error_px, t.degenerate, report.objects.size(),
+      args.cell.clustering.c_str());
   std::printf("%3s %9s %9s %9s %8s %7s %7s\n", "id", "x mm", "y mm", "height", "yaw deg", "moments",
               "points");
   int id = 1;
@@ -130,9 +124,6 @@ void RunPick(PickArgs& args) {
 
 void AddPickCommand(CLI::App& app) {
   auto args = std::make_shared<PickArgs>();
-  args->flags.options = vision::PickCellMatcherOptions();
-  args->flags.zrange = "-5,200";
-  args->flags.options.candidates.z_range_mm.reset();  // set from --zrange by Resolve
   CLI::App* cmd = app.add_subcommand(
       "pick",
       "Find the parts on the table: match the pair with the Hopfield network, triangulate with "
@@ -156,35 +147,13 @@ void AddPickCommand(CLI::App& app) {
   cmd->add_option("--histogram", args->histogram,
                   "Output PNG: histogram of point heights with the parts' heights");
   cmd->add_option("--energy-plot", args->energy_plot, "Output PNG: the network's energy trace");
-  cmd->add_option("--robot", args->robot, "Robot URI (reserved; see the robot commands)");
-  cmd->add_option("--frame", args->frame, "FRAME.yml (reserved; see the robot commands)");
-  cmd->add_option("--clustering", args->clustering,
-                  "grid (default: 3D density clustering, separates parts of equal height) or "
-                  "thesis (leader clustering on height, thresholds of the thesis code)")
-      ->capture_default_str();
-  cmd->add_option("--yaw", args->yaw,
-                  "rectangle (long side of the top face's minimum-area rectangle) or moments "
-                  "(thesis: 0.5 atan2(2 mu11, mu20 - mu02))")
-      ->capture_default_str();
-  cmd->add_option("--max-residual", args->sensing.max_reprojection_error_px,
-                  "Reject points whose reprojection residual exceeds this (px)")
-      ->capture_default_str();
-  cmd->add_option("--min-edge-angle", args->sensing.min_edge_epipolar_angle_deg,
-                  "Reject matches on edges within this angle of their epipolar line (deg)")
-      ->capture_default_str();
-  cmd->add_option("--cell", args->sensing.grid.cell_mm, "Grid clustering cell edge (mm)")
-      ->capture_default_str();
-  cmd->add_option("--min-points", args->sensing.grid.min_points,
-                  "Grid clustering: smallest part, in points")
-      ->capture_default_str();
-  cmd->add_option("--min-height", args->sensing.grid.min_height_mm,
-                  "Grid clustering: points below this height are the table (mm)")
-      ->capture_default_str();
-  cmd->add_option("--leader-threshold", args->sensing.leader.threshold_mm,
-                  "Thesis clustering: join/merge distance of heights (mm)")
-      ->capture_default_str();
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
-  args->flags.AddTo(cmd);
+  args->cell.AddTo(cmd);
+  args->link.AddTo(cmd,
+                   "Also send the picks through this link (one cycle, safety-gated): "
+                   "dryrun:FILE.jsonl, modbus-server://HOST:PORT, modbus-client://HOST:PORT, "
+                   "vision-server://HOST:PORT, serial:DEVICE?baud=2400 (docs/robot.md)",
+                   false);
   cmd->add_option("--config", args->config,
                   "YAML file of options: 'long-option-name: value' per line; the command line "
                   "wins");

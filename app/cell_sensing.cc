@@ -1,0 +1,103 @@
+#include "app/cell_sensing.h"
+
+#include <stdexcept>
+
+#include "vision/lens_distortion.h"
+
+namespace hnnstereo::app {
+
+CellSensingFlags::CellSensingFlags() {
+  flags.options = vision::PickCellMatcherOptions();
+  flags.zrange = "-5,200";
+  flags.options.candidates.z_range_mm.reset();  // set from --zrange by Resolve
+}
+
+void CellSensingFlags::AddTo(CLI::App* cmd) {
+  cmd->add_option("--clustering", clustering,
+                  "grid (default: 3D density clustering, separates parts of equal height) or "
+                  "thesis (leader clustering on height, thresholds of the thesis code)")
+      ->capture_default_str();
+  cmd->add_option("--yaw", yaw,
+                  "rectangle (long side of the top face's minimum-area rectangle) or moments "
+                  "(thesis: 0.5 atan2(2 mu11, mu20 - mu02))")
+      ->capture_default_str();
+  cmd->add_option("--max-residual", sensing.max_reprojection_error_px,
+                  "Reject points whose reprojection residual exceeds this (px)")
+      ->capture_default_str();
+  cmd->add_option("--min-edge-angle", sensing.min_edge_epipolar_angle_deg,
+                  "Reject matches on edges within this angle of their epipolar line (deg)")
+      ->capture_default_str();
+  cmd->add_option("--cell", sensing.grid.cell_mm, "Grid clustering cell edge (mm)")
+      ->capture_default_str();
+  cmd->add_option("--min-points", sensing.grid.min_points,
+                  "Grid clustering: smallest part, in points")
+      ->capture_default_str();
+  cmd->add_option("--min-height", sensing.grid.min_height_mm,
+                  "Grid clustering: points below this height are the table (mm)")
+      ->capture_default_str();
+  cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
+                  "Thesis clustering: join/merge distance of heights (mm)")
+      ->capture_default_str();
+  flags.AddTo(cmd);
+}
+
+void CellSensingFlags::Resolve() {
+  flags.Resolve();
+  flags.UseFeatureNetworkUnlessRectified(false);  // pick cells are calibrated, unrectified
+  sensing.matcher = flags.options;
+  if (auto method = vision::ParseClusteringMethod(clustering)) {
+    sensing.clustering = *method;
+  } else {
+    throw std::invalid_argument("unknown --clustering '" + clustering + "' (grid or thesis)");
+  }
+  if (auto method = vision::ParseYawMethod(yaw)) {
+    sensing.pose.yaw_method = *method;
+  } else {
+    throw std::invalid_argument("unknown --yaw '" + yaw + "' (rectangle or moments)");
+  }
+  if (const std::string problem = sensing.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+}
+
+SensedPair SenseCellPair(const std::string& left_path, const std::string& right_path,
+                         const calib::StereoCalibration& calibration,
+                         const std::string& calibration_name, const CellSensingFlags& flags,
+                         ocl::Runtime* runtime) {
+  SensedPair pair;
+  pair.left = vision::LoadImage(left_path);
+  pair.right = vision::LoadImage(right_path);
+  vision::CheckSameSize(pair.left, pair.right);
+  if (calibration.image_width > 0 && (calibration.image_width != pair.left.grey.cols ||
+                                      calibration.image_height != pair.left.grey.rows)) {
+    throw std::invalid_argument("calibration '" + calibration_name + "' is for " +
+                                std::to_string(calibration.image_width) + "x" +
+                                std::to_string(calibration.image_height) + " images, the pair is " +
+                                std::to_string(pair.left.grey.cols) + "x" +
+                                std::to_string(pair.left.grey.rows));
+  }
+  // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
+  // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
+  pair.left_grey = pair.left.grey;
+  pair.right_grey = pair.right.grey;
+  if (calibration.intrinsics && !calibration.intrinsics->D1.empty()) {
+    pair.left_grey = vision::UndistortImage(pair.left.grey, calibration.intrinsics->K1,
+                                            calibration.intrinsics->D1);
+    pair.right_grey = vision::UndistortImage(pair.right.grey, calibration.intrinsics->K2,
+                                             calibration.intrinsics->D2);
+  }
+  pair.report =
+      vision::SensePositions(pair.left_grey, pair.right_grey, calibration, flags.sensing, runtime);
+  return pair;
+}
+
+std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report) {
+  std::vector<robot::SensedObject> objects;
+  int id = 1;
+  for (const vision::ObjectPose& pose : report.objects) {
+    objects.push_back({id++, pose.centroid, pose.height_mm, pose.yaw_deg});
+  }
+  return objects;
+}
+
+}  // namespace hnnstereo::app

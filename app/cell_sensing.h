@@ -1,0 +1,44 @@
+#pragma once
+// Sensing a calibrated cell pair, shared by `pick` and `serve`: the pick-cell matcher and the
+// position-sensing options as command-line flags, and one call from image files to parts.
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "app/cli_support.h"
+#include "calib/calibration.h"
+#include "robot/pick_planning.h"
+#include "vision/image.h"
+#include "vision/position_sensing.h"
+
+namespace hnnstereo::app {
+
+struct CellSensingFlags {
+  std::string clustering = "grid";
+  std::string yaw = "rectangle";
+  vision::PositionSensingOptions sensing;
+  MatcherFlags flags;
+  CellSensingFlags();  ///< the pick-cell matcher defaults, --zrange -5,200
+  void AddTo(CLI::App* cmd);
+  /// Parses the string flags into `sensing`; throws std::invalid_argument with a one-line reason.
+  void Resolve();
+};
+
+struct SensedPair {
+  vision::LoadedImage left, right;
+  cv::Mat left_grey, right_grey;  ///< undistorted when the calibration carries distortion
+  vision::PositionSensingReport report;
+};
+
+/// Loads the pair (same size, the calibration's size), undistorts when D is present, senses.
+SensedPair SenseCellPair(const std::string& left_path, const std::string& right_path,
+                         const calib::StereoCalibration& calibration,
+                         const std::string& calibration_name, const CellSensingFlags& flags,
+                         ocl::Runtime* runtime);
+
+/// The robot side's view of the parts (ids 1.. in the report's order, tallest first).
+std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report);
+
+}  // namespace hnnstereo::app
