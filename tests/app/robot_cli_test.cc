@@ -198,4 +198,43 @@ TEST_F(RobotCli, PickSendsTheSensedPartsThroughTheLink) {
                      "--robot needs --frame", {"o2.json", "p2.jsonl"});
 }
 
+TEST_F(RobotCli, ServeReadsTheImagesAgainOnEveryTrigger) {
+  // The capture command alternates two rendered scenes (same cameras) into cur/; the third
+  // capture fails: that cycle publishes a sensing error and the loop goes on.
+  const std::string frame = IdentityFrame();
+  ASSERT_EQ(RunCli("render --seed 5 --objects 3 --out " + Path("a")).exit_code, 0);
+  ASSERT_EQ(RunCli("render --seed 5 --objects 5 --out " + Path("b")).exit_code, 0);
+  fs::create_directories(Path("cur"));
+  std::ofstream(Path("capture.sh"))
+      << "n=$(cat " << Path("count") << " 2>/dev/null || echo 0); n=$((n+1)); echo $n > "
+      << Path("count") << "\n"
+      << "case $n in 1) s=a;; 2) s=b;; 3) exit 3;; *) s=a;; esac\n"
+      << "cp " << Path("") << "$s/left.png " << Path("cur/left.png") << " && cp " << Path("")
+      << "$s/right.png " << Path("cur/right.png") << "\n";
+  const CliResult served = RunCli(
+      "serve --left " + Path("cur/left.png") + " --right " + Path("cur/right.png") + " --calib " +
+      Path("a/calib.yml") + " --capture 'sh " + Path("capture.sh") + "' --frame " + frame +
+      " --robot dryrun:" + Path("picks.jsonl") + " --cycles 4 --report " + Path("report.json"));
+  ASSERT_EQ(served.exit_code, 0) << served.output;
+  std::vector<nlohmann::json> cycles;
+  for (const nlohmann::json& line : ReadJsonLines(Path("picks.jsonl"))) {
+    if (line["type"] == "cycle") cycles.push_back(line);
+  }
+  ASSERT_EQ(cycles.size(), 4u);
+  EXPECT_EQ(cycles[0]["status"], 0);
+  EXPECT_EQ(cycles[1]["status"], 0);
+  EXPECT_EQ(cycles[2]["status"], -1) << "capture failed";
+  EXPECT_NE(cycles[2]["error"].get<std::string>().find("--capture"), std::string::npos);
+  EXPECT_EQ(cycles[3]["status"], 0);
+  std::ifstream truth_a(Path("a/truth.json")), truth_b(Path("b/truth.json"));
+  const auto parts_a = nlohmann::json::parse(truth_a)["objects"].size();
+  const auto parts_b = nlohmann::json::parse(truth_b)["objects"].size();
+  ASSERT_NE(parts_a, parts_b);
+  EXPECT_EQ(cycles[0]["poses"], parts_a) << "scene a";
+  EXPECT_EQ(cycles[1]["poses"], parts_b) << "scene b, read again";
+  EXPECT_EQ(cycles[3]["poses"], parts_a);
+  std::ifstream report_file(Path("report.json"));
+  EXPECT_EQ(nlohmann::json::parse(report_file)["sense_errors"], 1);
+}
+
 }  // namespace
