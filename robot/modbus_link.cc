@@ -1,6 +1,6 @@
 // Modbus TCP transports of the robot link (issue 5; docs/robot_modbus.md), on libmodbus 3.1.6.
 //
-// modbus-server://HOST:PORT[?unit=N]  the vision side is a Modbus TCP server the PLC polls.
+// modbus-server://HOST:PORT[?unit=N&connection=persistent|per-request]  the vision side is a Modbus TCP server the PLC polls.
 //   A background thread serves every connected client (select() over the listening socket and
 //   all clients, as libmodbus's tests/bandwidth-server-many-up.c does), the register mapping
 //   guarded by one mutex. Writes to the command register become events in a queue, so a fast
@@ -49,6 +49,11 @@ struct ModbusUriOptions {
   std::optional<int> unit;  ///< server: answer only this unit id (default: any);
                             ///< client: unit id sent (default 1)
   milliseconds poll{20};    ///< client: period of reading the controller's command register
+  /// server: the PLC keeps one connection (default). A cycle then belongs to the connection
+  /// that triggered it: its loss ends the wait for the acknowledge (kPeerLost) and the next
+  /// connection drops the unacknowledged result. false (?connection=per-request): masters that
+  /// open a connection per request (mbpoll, some PLC function blocks) - no connection rule.
+  bool persistent_connection = true;
 };
 
 int ParseQueryInt(const LinkUri& uri, const std::string& key, int lowest, int highest) {
@@ -71,9 +76,15 @@ ModbusUriOptions ParseModbusQuery(const LinkUri& uri, bool client) {
       options.unit = ParseQueryInt(uri, key, 0, 255);
     } else if (key == "poll_ms" && client) {
       options.poll = milliseconds(ParseQueryInt(uri, key, 1, 10000));
+    } else if (key == "connection" && !client) {
+      if (value != "persistent" && value != "per-request") {
+        throw std::invalid_argument("robot URI '" + uri.text + "': connection='" + value +
+                                    "' is not persistent or per-request");
+      }
+      options.persistent_connection = value == "persistent";
     } else {
       throw std::invalid_argument("robot URI '" + uri.text + "': unknown query key '" + key +
-                                  "' (" + (client ? "unit, poll_ms" : "unit") + ")");
+                                  "' (" + (client ? "unit, poll_ms" : "unit, connection") + ")");
     }
   }
   return options;
@@ -482,8 +493,8 @@ class ModbusServerLink final : public RobotLink {
     served_sequence_ = event.request_sequence;
     served_sequence_valid_ = true;
     ++stats_.triggers;
-    trigger_owner_ = event.connection;
-    owner_lost_ = live_connections_.count(event.connection) == 0;
+    trigger_owner_ = query_.persistent_connection ? event.connection : -1;
+    owner_lost_ = query_.persistent_connection && live_connections_.count(event.connection) == 0;
     ClearResultLocked();
     mapping_->tab_registers[mb::kStatusRegister] = mb::EncodeStatus(mb::kStatusBusy);
     return {TriggerKind::kTrigger, event.request_sequence};

@@ -284,6 +284,21 @@ TEST(ModbusServerLink, AMonitorConnectingDoesNotDropTheResult) {
   EXPECT_EQ(link->Stats().dropped_on_reconnect, 0);
 }
 
+TEST(ModbusServerLink, PerRequestConnectionsKeepTheCycle) {
+  auto link = OpenServer(QuietOptions(), "?connection=per-request");
+  const int port = PortOf(*link);
+  Plc(port).Trigger(8);  // connect, write, disconnect - as mbpoll does
+  ASSERT_EQ(link->WaitForTrigger(milliseconds(2000)).kind, TriggerKind::kTrigger);
+  link->Publish(Cycle(8, {Pick(1, 10, 20, 30, 40)}));
+  EXPECT_EQ(link->WaitForAcknowledge(milliseconds(100)), AckKind::kTimeout) << "not kPeerLost";
+  EXPECT_EQ(Plc(port).Read(mb::kPoseCountRegister), 1) << "not dropped by a new connection";
+  Plc(port).Write(mb::kCommandRegister, mb::kCommandAcknowledge);
+  EXPECT_EQ(link->WaitForTrigger(milliseconds(100)).kind, TriggerKind::kIdle);
+  EXPECT_EQ(Plc(port).Read(mb::kStatusRegister), mb::kStatusIdle) << "late acknowledge taken";
+  EXPECT_EQ(link->Stats().dropped_on_reconnect, 0);
+  EXPECT_THROW(OpenServer(QuietOptions(), "?connection=sometimes"), std::invalid_argument);
+}
+
 TEST(ModbusServerLink, HeartbeatIncreases) {
   LinkOptions options = QuietOptions();
   options.heartbeat_period = milliseconds(20);
