@@ -61,6 +61,9 @@ std::string ReplyLine(int status, const PickCommand* pick) {
       v[3 + i] = rotation_vector[i];
     }
   }
+  for (double& value : v) {
+    if (std::abs(value) < 5e-7) value = 0.0;  // never print "-0.000000"
+  }
   char text[160];
   std::snprintf(text, sizeof text, "(%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f)\n", status, v[0], v[1],
                 v[2], v[3], v[4], v[5]);
