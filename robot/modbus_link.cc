@@ -158,6 +158,7 @@ class ModbusServerLink final : public RobotLink {
     const auto deadline = Clock::now() + timeout;
     std::unique_lock lock(mutex_);
     while (true) {
+      FlushLogsLocked();
       while (!events_.empty()) {
         const CommandEvent event = PopEventLocked();
         switch (event.command) {
@@ -185,6 +186,7 @@ class ModbusServerLink final : public RobotLink {
     const auto deadline = Clock::now() + timeout;
     std::unique_lock lock(mutex_);
     while (true) {
+      FlushLogsLocked();
       while (!events_.empty()) {
         const CommandEvent& next = events_.front();
         if (next.command == mb::kCommandTrigger && !IsDuplicateLocked(next.request_sequence)) {
@@ -347,7 +349,8 @@ class ModbusServerLink final : public RobotLink {
                       static_cast<suseconds_t>(wait.count() % 1000000)};
       const int ready = select(highest + 1, &readable, nullptr, nullptr, &timeout);
       if (ready < 0 && errno != EINTR) {
-        Log("modbus-server: select failed: " + std::string(std::strerror(errno)));
+        std::lock_guard lock(mutex_);
+        DeferLogLocked("modbus-server: select failed: " + std::string(std::strerror(errno)));
         std::this_thread::sleep_for(milliseconds(10));
         continue;
       }
@@ -387,8 +390,9 @@ class ModbusServerLink final : public RobotLink {
     const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
     if (fd < 0) return;
     if (fd >= FD_SETSIZE) {  // select() cannot watch it
-      Log("modbus-server: too many connections; refusing one");
       close(fd);
+      std::lock_guard lock(mutex_);
+      DeferLogLocked("modbus-server: too many connections; refused one");
       return;
     }
     const int yes = 1;
@@ -408,7 +412,7 @@ class ModbusServerLink final : public RobotLink {
       ++stats_.dropped_on_reconnect;
       // The request may be triggered again under the same sequence: nothing was acknowledged.
       served_sequence_valid_ = false;
-      Log("modbus-server: client reconnected while the result of request " +
+      DeferLogLocked("modbus-server: client reconnected while the result of request " +
           std::to_string(served_sequence_) + " (" + std::to_string(poses) +
           " poses) was pending; dropped it");
     }
@@ -438,7 +442,7 @@ class ModbusServerLink final : public RobotLink {
     if (command == mb::kCommandNone) return;
     if (events_.size() >= kMaxQueuedCommands) {
       ++stats_.malformed;
-      Log("modbus-server: more than " + std::to_string(kMaxQueuedCommands) +
+      DeferLogLocked("modbus-server: more than " + std::to_string(kMaxQueuedCommands) +
           " commands unconsumed; dropping the oldest");
       events_.pop_front();
     }
@@ -471,6 +475,14 @@ class ModbusServerLink final : public RobotLink {
     }
     return address == mb::kCommandRegister && count >= 1 && count <= MODBUS_MAX_WRITE_REGISTERS &&
            address + count <= register_count_;
+  }
+
+  // The log callback is called on the caller's thread only (it need not be thread-safe): lines
+  // from the server thread wait here until the next WaitForTrigger/WaitForAcknowledge.
+  void DeferLogLocked(std::string line) { deferred_logs_.push_back(std::move(line)); }
+  void FlushLogsLocked() {
+    for (const std::string& line : deferred_logs_) Log(line);
+    deferred_logs_.clear();
   }
 
   CommandEvent PopEventLocked() {
@@ -541,6 +553,7 @@ class ModbusServerLink final : public RobotLink {
   std::condition_variable changed_;
   modbus_mapping_t* mapping_ = nullptr;
   std::deque<CommandEvent> events_;
+  std::vector<std::string> deferred_logs_;
   std::set<int> live_connections_;
   int trigger_owner_ = -1;    ///< connection that sent the trigger being served
   bool owner_lost_ = false;   ///< ... and has disconnected since
@@ -606,6 +619,7 @@ class ModbusClientLink final : public RobotLink {
     while (true) {
       {
         std::lock_guard lock(mutex_);
+        FlushLogsLocked();
         std::uint16_t words[2];
         if (ReadLocked(mb::kCommandRegister, 2, words)) {
           const std::uint16_t command = words[0];
@@ -642,6 +656,7 @@ class ModbusClientLink final : public RobotLink {
     while (true) {
       {
         std::lock_guard lock(mutex_);
+        FlushLogsLocked();
         if (lost_pending_) {
           lost_pending_ = false;
           return AckKind::kPeerLost;
@@ -713,6 +728,7 @@ class ModbusClientLink final : public RobotLink {
         mb::EncodeStatus(error ? admitted.status : mb::kStatusResultReady);
     const int poses = static_cast<int>(pose_words.size()) / mb::kWordsPerPose;
     std::lock_guard lock(mutex_);
+    FlushLogsLocked();
     result_pending_ = true;  // from here a lost connection drops (and counts) this result
     lost_pending_ = false;
     const std::uint16_t header[2] = {
@@ -746,8 +762,24 @@ class ModbusClientLink final : public RobotLink {
       next += options().heartbeat_period;
       if (next < Clock::now()) next = Clock::now() + options().heartbeat_period;
       const auto word = static_cast<std::uint16_t>(heartbeat_ + 1);  // wraps 65535 -> 0
+      on_heartbeat_thread_ = true;
       if (WriteLocked(mb::kHeartbeatRegister, word)) heartbeat_ = word;
+      on_heartbeat_thread_ = false;
     }
+  }
+
+  // The log callback is called on the caller's thread only (it need not be thread-safe): lines
+  // from the heartbeat thread wait for the next WaitForTrigger/WaitForAcknowledge/Send.
+  void LogLocked(std::string line) {
+    if (on_heartbeat_thread_) {
+      deferred_logs_.push_back(std::move(line));
+    } else {
+      Log(line);
+    }
+  }
+  void FlushLogsLocked() {
+    for (const std::string& line : deferred_logs_) Log(line);
+    deferred_logs_.clear();
   }
 
   /// Connects when not connected and the backoff allows. False: no connection now.
@@ -758,7 +790,7 @@ class ModbusClientLink final : public RobotLink {
       const std::string reason = modbus_strerror(errno);
       modbus_close(context_);
       next_attempt_ = Clock::now() + backoff_;
-      Log("modbus-client: reconnect to " + uri_.host + ":" + std::to_string(uri_.port) +
+      LogLocked("modbus-client: reconnect to " + uri_.host + ":" + std::to_string(uri_.port) +
           " failed (" + reason + "); next try in " + std::to_string(backoff_.count()) + " ms");
       backoff_ = std::min(backoff_ * 2, options().reconnect_backoff_max);
       return false;
@@ -767,7 +799,7 @@ class ModbusClientLink final : public RobotLink {
     backoff_ = options().reconnect_backoff_min;
     ++stats_.connections;
     ++stats_.reconnects;
-    Log("modbus-client: reconnected to " + uri_.host + ":" + std::to_string(uri_.port));
+    LogLocked("modbus-client: reconnected to " + uri_.host + ":" + std::to_string(uri_.port));
     if (clear_on_reconnect_) {
       // The result pending at the loss was dropped: tell the controller there is none, so it
       // triggers again (status idle, no poses).
@@ -781,7 +813,7 @@ class ModbusClientLink final : public RobotLink {
   }
 
   void LostLocked(const std::string& what) {
-    Log("modbus-client: " + what + " failed: " + modbus_strerror(errno) + "; reconnecting");
+    LogLocked("modbus-client: " + what + " failed: " + modbus_strerror(errno) + "; reconnecting");
     modbus_close(context_);
     connected_ = false;
     next_attempt_ = Clock::now() + backoff_;
@@ -868,6 +900,8 @@ class ModbusClientLink final : public RobotLink {
   bool lost_pending_ = false;        ///< the connection was lost with a result pending
   bool clear_on_reconnect_ = false;  ///< tell the controller its result is gone
   std::uint16_t heartbeat_ = 0;
+  bool on_heartbeat_thread_ = false;  ///< set while the heartbeat thread holds the lock
+  std::vector<std::string> deferred_logs_;
   std::uint16_t served_sequence_ = 0;
   bool served_sequence_valid_ = false;
   LinkStats stats_;
