@@ -34,6 +34,7 @@ struct EvalArgs {
   double memory_budget_mb = 6144.0;
   double support_radius = 8.0, threshold = 0.5, max_epipolar = 1.5, min_correlation = -1.0;
   bool left_right_check = false, subpixel = false, zncc_peaks = false, subpixel_peaks = false;
+  bool epipolar_snap = false, epipolar_subpixel = false;
   double lr_tolerance = 1.0;
   CLI::App* cmd = nullptr;
 };
@@ -72,6 +73,10 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
   if (Given(args, "--min-correlation")) o.candidates.min_correlation = args.min_correlation;
   if (Given(args, "--lr-check")) preset.refinement.left_right_check = args.left_right_check;
   if (Given(args, "--subpixel")) preset.refinement.subpixel = args.subpixel;
+  if (Given(args, "--epipolar-snap")) preset.refinement.epipolar_snap = args.epipolar_snap;
+  if (Given(args, "--epipolar-subpixel")) {
+    preset.refinement.epipolar_subpixel = args.epipolar_subpixel;
+  }
   if (Given(args, "--lr-tolerance")) preset.refinement.left_right_tolerance_px = args.lr_tolerance;
   if (Given(args, "--zncc-peaks")) o.candidates.zncc_peaks = args.zncc_peaks;
   if (Given(args, "--subpixel-peaks")) o.candidates.subpixel_peaks = args.subpixel_peaks;
@@ -125,7 +130,9 @@ void RunEval(EvalArgs& args) {
          {"threshold", preset.matcher.decode.threshold},
          {"max_features", preset.matcher.features.max_features},
          {"left_right_check", preset.refinement.left_right_check},
-         {"subpixel", preset.refinement.subpixel}});
+         {"subpixel", preset.refinement.subpixel},
+         {"epipolar_snap", preset.refinement.epipolar_snap},
+         {"epipolar_subpixel", preset.refinement.epipolar_subpixel}});
   }
   const std::string markdown = vision::EvaluationMarkdown(report);
   const std::string plot_path =
@@ -200,6 +207,12 @@ void AddEvalCommand(CLI::App& app) {
   cmd->add_option("--min-correlation", args->min_correlation, "First preset: ZNCC gate");
   cmd->add_option("--lr-check", args->left_right_check, "First preset: left-right check (0/1)");
   cmd->add_option("--subpixel", args->subpixel, "First preset: sub-pixel parabola fit (0/1)");
+  cmd->add_option("--epipolar-snap", args->epipolar_snap,
+                  "First preset, unrectified (--warped) runs: move right points onto the epipolar "
+                  "line (0/1)");
+  cmd->add_option("--epipolar-subpixel", args->epipolar_subpixel,
+                  "First preset, unrectified (--warped) runs: sub-pixel parabola fit along the "
+                  "epipolar line (0/1)");
   cmd->add_option("--lr-tolerance", args->lr_tolerance, "First preset: left-right tolerance (px)");
   cmd->add_option("--zncc-peaks", args->zncc_peaks,
                   "First preset, disparity network: candidates only at ZNCC peaks (0/1)");

@@ -25,6 +25,12 @@ struct RefinementOptions {
   /// Sub-pixel: fit a parabola to ZNCC at the right point and its two neighbours along the row
   /// (rectified pairs only) and move the right point to the vertex (at most 0.5 px).
   bool subpixel = false;
+  /// Unrectified pairs: move the right point to the foot of its perpendicular on the left
+  /// point's epipolar line F x (a right edge pixel lies up to 0.7 px off the line it belongs to).
+  bool epipolar_snap = false;
+  /// Unrectified pairs, after the snap: the parabola fit of `subpixel` along the epipolar line,
+  /// with bilinearly interpolated right windows.
+  bool epipolar_subpixel = false;
   std::string Check() const;
 };
 
@@ -56,8 +62,15 @@ MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,
                             const calib::StereoCalibration* calibration, const MatcherPreset& preset,
                             ocl::Runtime* runtime);
 
-/// The refinements alone, on a finished report (rectified pairs; with a calibration the
-/// left-right check searches the epipolar line F^T x_r and sub-pixel is skipped).
+/// Unrectified pairs: moves match->right onto the left point's epipolar line F x_l (the foot of
+/// the perpendicular) and, with `subpixel`, by a parabola fit of ZNCC along that line (at most
+/// 0.5 px; right windows bilinearly interpolated).
+void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                             const Eigen::Matrix3d& F, int window, bool subpixel,
+                             StereoMatch* match);
+
+/// The refinements alone, on a finished report (with a calibration the left-right check
+/// searches the epipolar line F^T x_r and the snap / sub-pixel work along F x_l).
 void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                    const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
                    const RefinementOptions& refinement, MatchReport* report);

@@ -165,6 +165,64 @@ TEST(Refinement, SubpixelParabolaReducesTheErrorOfAFractionalShift) {
   EXPECT_LT(mean_error(report), 0.2);
 }
 
+TEST(Refinement, EpipolarSnapAndSubpixelAlongTheLineOnAWarpedPair) {
+  // Rectified pair at d = 6.4, right image then warped by H (3 deg rotation, a shift): the true
+  // right point is H (x - 6.4, y) and F = H^-T F_rect with F_rect: y_r = y_l.
+  const SyntheticPair pair = MakePair(6.4, 21, 200, 160);
+  Eigen::Matrix3d H;
+  const double a = 3.0 * M_PI / 180.0;
+  H << std::cos(a), -std::sin(a), 6.0, std::sin(a), std::cos(a), -4.0, 0.0, 0.0, 1.0;
+  cv::Mat H_cv(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) H_cv.at<double>(r, c) = H(r, c);
+  cv::Mat right_warped;
+  cv::warpPerspective(pair.right, right_warped, H_cv, pair.right.size(), cv::INTER_CUBIC);
+  Eigen::Matrix3d F_rect;
+  F_rect << 0, 0, 0, 0, 0, -1, 0, 1, 0;
+  const Eigen::Matrix3d F = H.inverse().transpose() * F_rect;
+  MatchReport report;
+  std::vector<Eigen::Vector2f> truth;
+  for (const Eigen::Vector2f& p : GridPoints(pair.left.cols, pair.left.rows, 24, 12)) {
+    const Eigen::Vector3d t = H * Eigen::Vector3d(p.x() - 6.4, p.y(), 1.0);
+    truth.emplace_back(static_cast<float>(t.x() / t.z()), static_cast<float>(t.y() / t.z()));
+    // The matcher hands back a right edge pixel: the true point rounded to the pixel grid.
+    report.matches.push_back({p, Eigen::Vector2f(std::round(truth.back().x()),
+                                                 std::round(truth.back().y())), 1.0f, 0, 0});
+  }
+  auto errors = [&](const MatchReport& r) {
+    double sum = 0.0, off_line = 0.0;
+    for (std::size_t i = 0; i < r.matches.size(); ++i) {
+      sum += (r.matches[i].right - truth[i]).norm();
+      Eigen::Vector3d line = F * Eigen::Vector3d(r.matches[i].left.x(), r.matches[i].left.y(), 1);
+      line /= line.head<2>().norm();
+      off_line += std::abs(line.dot(Eigen::Vector3d(r.matches[i].right.x(), r.matches[i].right.y(), 1)));
+    }
+    const double n = static_cast<double>(r.matches.size());
+    return std::make_pair(sum / n, off_line / n);
+  };
+  calib::StereoCalibration calibration;
+  calibration.F = F;
+  MatcherOptions matcher;
+  matcher.candidates.rectified = false;
+  RefinementOptions snap;
+  snap.epipolar_snap = true;
+  MatchReport snapped = report;
+  RefineMatches(pair.left, right_warped, &calibration, matcher, snap, &snapped);
+  const auto [before, before_off_line] = errors(report);
+  const auto [after_snap, snap_off_line] = errors(snapped);
+  EXPECT_GT(before, 0.3);
+  EXPECT_GT(before_off_line, 0.15);
+  EXPECT_LT(snap_off_line, 1e-4) << "on the epipolar line";
+  EXPECT_LT(after_snap, before);
+  RefinementOptions subpixel = snap;
+  subpixel.epipolar_subpixel = true;
+  MatchReport refined = report;
+  RefineMatches(pair.left, right_warped, &calibration, matcher, subpixel, &refined);
+  const auto [after_subpixel, subpixel_off_line] = errors(refined);
+  EXPECT_LT(subpixel_off_line, 1e-4);
+  EXPECT_LT(after_subpixel, 0.6 * after_snap) << "the parabola along the line";
+}
+
 TEST(Refinement, LeftRightCheckDropsInconsistentMatches) {
   const SyntheticPair pair = MakePair(5.0, 14);
   MatchReport report;
