@@ -111,7 +111,8 @@ nlohmann::json CellLoopReportJson(const robot::CellLoopReport& report) {
                     {"malformed", s.malformed},
                     {"cycles_published", s.cycles_published},
                     {"poses_sent", s.poses_sent},
-                    {"dropped_on_reconnect", s.dropped_on_reconnect}}}};
+                    {"dropped_on_reconnect", s.dropped_on_reconnect},
+                    {"transport_refused", s.transport_refused}}}};
 }
 
 void PrintCycleLine(const robot::CycleLog& log) {

@@ -121,8 +121,9 @@ void AddServeCommand(CLI::App& app) {
       "      --robot modbus-server://0.0.0.0:1502          # a PLC polls the registers\n"
       "  hnnstereo serve --replay objects.json --frame FRAME.yml --robot dryrun:picks.jsonl "
       "--cycles 3\n"
-      "stdout: 'link: URI' (with the port bound), then one line per cycle. Transports, the "
-      "Modbus register map and the vision-server protocol: docs/robot.md.");
+      "stdout: 'link: URI' (with the port bound), then one line per cycle. Transports: "
+      "docs/robot.md; the Modbus register map: docs/robot_modbus.md; the vision-server and "
+      "serial protocols: docs/robot_ascii.md.");
   cmd->add_option("--left", args->left, "Left image, read again on every trigger");
   cmd->add_option("--right", args->right, "Right image, read again on every trigger");
   cmd->add_option("--calib", args->calib, "CAL.yml of the cell (P1, P2; table at z = 0)");

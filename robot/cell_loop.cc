@@ -70,17 +70,20 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
       cycle.status = kErrorSensingFailed;
       cycle.error = error.what();
     }
+    const int transport_refused_before = link.Stats().transport_refused;
     const PublishReport published = link.Publish(cycle);
-    log.published = published.admitted;
-    log.refused = published.refused;
+    // Picks the transport itself refused (admitted by the gate) are not "sent".
+    const int transport_refused = link.Stats().transport_refused - transport_refused_before;
+    log.published = published.admitted - transport_refused;
+    log.refused = published.refused + transport_refused;
     log.status = cycle.status == 0 && published.admitted == 0 && published.refused > 0
                      ? kErrorAllRefused
                      : cycle.status;
     log.error = log.status == kErrorAllRefused && cycle.status == 0
                     ? "the safety gate refused every pose of this cycle"
                     : cycle.error;
-    report.poses_published += published.admitted;
-    report.refused += published.refused;
+    report.poses_published += log.published;
+    report.refused += log.refused;
     log.ack = link.WaitForAcknowledge(options.ack_timeout);
     if (log.ack == AckKind::kTimeout) ++report.ack_timeouts;
     if (log.ack == AckKind::kPeerLost) ++report.peer_lost;

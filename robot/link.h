@@ -52,7 +52,8 @@ struct LinkOptions {
   std::chrono::milliseconds reconnect_backoff_min{100};   ///< first retry after a lost peer
   std::chrono::milliseconds reconnect_backoff_max{5000};  ///< doubling stops here
   int max_poses = 16;                           ///< per cycle (Modbus: registers 20 + 8 * 16)
-  /// Where the link logs refusals, reconnects and malformed requests (one line each).
+  /// Where the link logs refusals, reconnects and malformed requests (one line each). Called
+  /// only on the thread that calls the link (transports with threads queue their lines).
   std::function<void(const std::string&)> log;
   std::string Check() const;
 };
@@ -91,7 +92,10 @@ struct LinkStats {
   int malformed = 0;             ///< requests the protocol does not know
   int cycles_published = 0;
   int poses_sent = 0;
-  int dropped_on_reconnect = 0;  ///< published poses cleared because the peer reconnected
+  int dropped_on_reconnect = 0;  ///< published results cleared because the peer reconnected
+  /// Picks the gate admitted but the transport could not carry (e.g. beyond the thesis arm's
+  /// reach): logged, never partly sent.
+  int transport_refused = 0;
 };
 
 class RobotLink {

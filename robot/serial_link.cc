@@ -169,6 +169,7 @@ class SerialLink final : public RobotLink {
       } catch (const std::runtime_error& refusal) {
         Log("object " + std::to_string(pick.object_id) + " (sequence " +
             std::to_string(pick.sequence) + ") not sent: " + refusal.what());
+        ++stats_.transport_refused;
         continue;
       }
       WriteLines(lines);

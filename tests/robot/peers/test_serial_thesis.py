@@ -130,6 +130,13 @@ def main():
         check(counters["cycles"] == CYCLES, "report: %r" % counters)
         check(counters["link"]["poses_sent"] == CYCLES * len(REACHABLE),
               "poses sent (the unreachable one must not count): %r" % counters["link"])
+        check(counters["poses_published"] == CYCLES * len(REACHABLE) and
+              counters["link"]["transport_refused"] == CYCLES and
+              counters["refused"] == CYCLES * (len(OBJECTS) - len(REACHABLE)),
+              "the loop must count the arm's refusal as refused, not published: %r" % counters)
+        check(all(", %d sent," % len(REACHABLE) in line
+                  for line in serve.stdout if line.startswith("cycle ")),
+              "cycle lines must say %d sent: %r" % (len(REACHABLE), serve.stdout))
         check(any("cannot reach" in line for line in serve.stderr),
               "the unreachable pick was not logged: %r" % serve.stderr)
         print("serial thesis: %d cycles, %d lines, %d bytes in %.2f s; worst FK error %.3f mm"
