@@ -35,6 +35,10 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--min-height", sensing.grid.min_height_mm,
                   "Grid clustering: points below this height are the table (mm)")
       ->capture_default_str();
+  cmd->add_option("--min-top-width", sensing.min_top_width_mm,
+                  "Drop parts whose top face is narrower than this (mm): a line of points on a "
+                  "tall part's side is not a part (0 keeps all)")
+      ->capture_default_str();
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();

@@ -46,6 +46,7 @@ std::string PositionSensingOptions::Check() const {
   }
   if (min_strong_points < 1) return "min_strong_points must be >= 1";
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
+  if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -160,11 +161,14 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
     bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
-    if (!small && options.min_top_fraction > 0.0) {
+    if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
       const ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
       if (pose.top_points < options.min_top_fraction * pose.points) {
         small = true;
         ++report.without_top_face;
+      } else if (pose.top_rectangle.width < options.min_top_width_mm) {
+        small = true;
+        ++report.narrow_top_face;
       }
     }
     if (small) {
@@ -241,7 +245,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {{"outside_height_window", report.clustering.n_outside_height_window},
             {"in_small_clusters", report.clustering.n_in_small_clusters},
             {"island_merges", report.island_merges},
-            {"without_top_face", report.without_top_face}}},
+            {"without_top_face", report.without_top_face},
+            {"narrow_top_face", report.narrow_top_face}}},
           {"timing_ms",
            {{"match", report.timing_ms.match},
             {"triangulate", report.timing_ms.triangulate},

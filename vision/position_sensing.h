@@ -52,6 +52,12 @@ struct PositionSensingOptions {
   /// part's side seen against its shadow), not a top face. Seeds 100-119: true parts 0.89-1.0,
   /// the one such false part 0.26. 0 keeps all.
   double min_top_fraction = 0.5;
+  /// Parts whose top face's minimum-area rectangle is narrower than this (mm) are dropped: a
+  /// line of points at one height - an edge across a tall part's side face - is not a top face,
+  /// and no gripper takes a part that thin. Seed 11 with 4 objects: a 52.5 x 0.56 mm "part" at
+  /// 67.7 mm on the side of a 143 mm box; the narrowest true top face in seeds 100-119 is far
+  /// wider (the renderer's smallest side is SceneRenderOptions::min_side_mm, 25 mm). 0 keeps all.
+  double min_top_width_mm = 5.0;
   std::string Check() const;
 };
 
@@ -79,6 +85,7 @@ struct PositionSensingReport {
   ClusteringReport clustering;                   ///< labels index points_in_world
   int island_merges = 0;                         ///< top-face islands joined to their part
   int without_top_face = 0;                      ///< clusters dropped by min_top_fraction
+  int narrow_top_face = 0;                       ///< clusters dropped by min_top_width_mm
   std::vector<ObjectPose> objects;               ///< tallest first
   PositionSensingTiming timing_ms;
 };

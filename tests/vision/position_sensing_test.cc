@@ -272,6 +272,33 @@ TEST(PositionSensing, RenderedSceneWhereThesisClusteringFailsAndGridSucceeds) {
   EXPECT_LT(thesis_report.objects.size(), 4u);  // parts merged into one height cluster
 }
 
+TEST(PositionSensing, ALineOfPointsOnATallPartsSideIsNotAPart) {
+  // `render --seed 11 --objects 4`: an edge across the side face of a 143 mm box triangulates to
+  // a 52.5 x 0.56 mm line of points at 67.7 mm - a "part" a robot would drive into the box's side
+  // for. min_top_width_mm drops it.
+  SceneRenderOptions options;
+  options.seed = 11;
+  options.num_objects = 4;
+  const RenderedScene scene = RenderScene(options);
+  PositionSensingOptions sensing = CpuOptions();
+  // As `pick` runs it (the hnn-default preset's objective).
+  sensing.matcher.energy.objective = hnn::Objective::kGeometrySimilarity;
+  const MatchReport match =
+      MatchStereo(scene.left, scene.right, &scene.cameras, sensing.matcher, nullptr);
+  const PositionSensingReport report =
+      SensePositionsFromMatches(match, scene.cameras, sensing, scene.left);
+  const TruthComparison truth = CompareWithTruth(report.objects, scene.objects);
+  PrintScene(options.seed, report, scene, truth);
+  EXPECT_EQ(truth.detected, static_cast<int>(scene.objects.size()));
+  EXPECT_EQ(truth.false_objects, 0);
+  EXPECT_GE(report.narrow_top_face, 1);
+  sensing.min_top_width_mm = 0.0;
+  const PositionSensingReport without =
+      SensePositionsFromMatches(match, scene.cameras, sensing, scene.left);
+  EXPECT_GT(CompareWithTruth(without.objects, scene.objects).false_objects, 0)
+      << "the failure this option exists for";
+}
+
 // The thesis's robustness test: zero-mean Gaussian noise on the entries of F (unit Frobenius
 // norm), sigma = kFNoiseSigma. The test prints the mean epipolar distance this noise puts between
 // true correspondences (the calibrated F gives about 0.05 px).
