@@ -14,6 +14,7 @@
 #include <string>
 
 #include "robot/link.h"
+#include "robot/pick_planning.h"
 #include "robot/thesis_arm.h"
 
 namespace hnnstereo::robot {
@@ -21,16 +22,10 @@ namespace {
 
 using std::chrono::milliseconds;
 
+// A tool-down pick at (x, y, z) of the robot frame, as the cell loop plans it.
 PickCommand ToolDownPick(std::uint32_t sequence, double x, double y, double z, double yaw_deg) {
-  PickCommand pick;
-  pick.sequence = sequence;
-  pick.object_id = static_cast<int>(sequence);
-  pick.position_mm = Eigen::Vector3d(x, y, z);
-  pick.yaw_deg = yaw_deg;
-  pick.orientation =
-      Eigen::AngleAxisd(yaw_deg * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()) *
-      Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX());
-  return pick;
+  return PlanPick({static_cast<int>(sequence), {x, y, z}, z, yaw_deg},
+                  Eigen::Isometry3d::Identity(), {}, sequence, 0.0);
 }
 
 SafetyGate ThesisGate() {

@@ -1,5 +1,6 @@
 // The thesis arm profile: inverse and forward kinematics, joint pulses, the pick's command lines.
 #include "robot/thesis_arm.h"
+#include "robot/pick_planning.h"
 
 #include <gtest/gtest.h>
 
@@ -55,14 +56,11 @@ ThesisToolPose Down(double x, double y, double z, double roll_deg) {
   return pose;
 }
 
+// A tool-down pick at (x, y, z) of the robot frame, as the cell loop plans it.
 PickCommand ToolDownPick(double x, double y, double z, double yaw_deg, double speed) {
-  PickCommand pick;
-  pick.position_mm = Eigen::Vector3d(x, y, z);
-  pick.yaw_deg = yaw_deg;
-  pick.orientation = Eigen::AngleAxisd(yaw_deg * kPi / 180.0, Eigen::Vector3d::UnitZ()) *
-                     Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX());
-  pick.speed_fraction = speed;
-  return pick;
+  PickPlanningOptions planning;
+  planning.speed_fraction = speed;
+  return PlanPick({0, {x, y, z}, z, yaw_deg}, Eigen::Isometry3d::Identity(), planning, 0, 0.0);
 }
 
 double RollDifferenceDeg(double a, double b) {  // modulo 180 (parallel jaws)
