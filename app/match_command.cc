@@ -131,7 +131,7 @@ void AddMatchCommand(CLI::App& app) {
       "Example (rectified Middlebury pair):\n"
       "  hnnstereo match --left im2.png --right im6.png --rectified --max-disparity 64 \\\n"
       "      --out matches.csv --report report.json --overlay overlay.png\n"
-      "Outputs: MATCHES.csv (xl,yl,xr,yr,activation; 0-based pixels), REPORT.json (engine, "
+      "Outputs: MATCHES.csv (xl,yl,xr,yr,activation,confidence; 0-based pixels), REPORT.json (engine, "
       "sizes, iterations, energies, timing_ms).");
   cmd->add_option("--left", args->left, "Left image (8/16-bit, grey or colour)")->required();
   cmd->add_option("--right", args->right, "Right image, same size")->required();

@@ -5,11 +5,11 @@
 namespace hnnstereo::vision {
 
 std::string MatchesCsv(const MatchReport& report) {
-  std::string text = "xl,yl,xr,yr,activation\n";
+  std::string text = "xl,yl,xr,yr,activation,confidence\n";
   char line[160];
   for (const StereoMatch& m : report.matches) {
-    std::snprintf(line, sizeof(line), "%.3f,%.3f,%.3f,%.3f,%.6f\n", m.left.x(), m.left.y(),
-                  m.right.x(), m.right.y(), m.activation);
+    std::snprintf(line, sizeof(line), "%.3f,%.3f,%.3f,%.3f,%.6f,%.6f\n", m.left.x(), m.left.y(),
+                  m.right.x(), m.right.y(), m.activation, m.confidence);
     text += line;
   }
   return text;

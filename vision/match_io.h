@@ -8,7 +8,7 @@
 
 namespace hnnstereo::vision {
 
-/// "xl,yl,xr,yr,activation" then one row per match (0-based pixel coordinates).
+/// "xl,yl,xr,yr,activation,confidence" then one row per match (0-based pixel coordinates).
 std::string MatchesCsv(const MatchReport& report);
 
 /// The REPORT.json object: engine, device, sizes, iterations, energies, timing_ms and more.

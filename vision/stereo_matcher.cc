@@ -114,7 +114,8 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   for (const hnn::DecodedMatch& m : decoded) {
     const hnn::Candidate& c = problem.candidates[static_cast<std::size_t>(m.neuron)];
     report.matches.push_back({problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
-                              static_cast<float>(m.activation), c.left, c.column});
+                              static_cast<float>(m.activation), c.left, c.column,
+                              static_cast<float>(m.activation)});
   }
   report.timing_ms.decode = MillisecondsSince(start);
   report.timing_ms.total = MillisecondsSince(total_start);

@@ -37,9 +37,11 @@ struct MatcherOptions {
 struct StereoMatch {
   Eigen::Vector2f left;
   Eigen::Vector2f right;
-  float activation;  ///< confidence
+  float activation;  ///< the winner's final V (saturates near 1: not a ranking)
   int left_index;
   int column;
+  /// In [0, 1], higher = more likely correct; ranks matches (docs/accuracy.md, "Confidence").
+  float confidence = 0.0f;
 };
 
 struct TimingMs {

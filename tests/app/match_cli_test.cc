@@ -43,7 +43,7 @@ TEST_F(MatchCli, WritesTheContractFiles) {
   std::ifstream csv(Path("m.csv"));
   std::string header, row;
   std::getline(csv, header);
-  EXPECT_EQ(header, "xl,yl,xr,yr,activation");
+  EXPECT_EQ(header, "xl,yl,xr,yr,activation,confidence");
   int rows = 0;
   while (std::getline(csv, row)) ++rows;
   EXPECT_GT(rows, 300);
