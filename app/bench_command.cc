@@ -17,7 +17,8 @@ namespace {
 
 struct BenchArgs {
   std::string out;
-  std::string sizes = "500,1000,2000,5000";
+  std::string sizes = "500,1000,2000,5000,all";
+  std::string storages;
   std::string engines = "opencl,cpu,thesis";
   bool quick = false;
   perf::ThroughputBenchOptions bench;
@@ -54,7 +55,7 @@ void RunBench(BenchArgs& args) {
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {
     try {
-      bench.sparse_sizes.push_back(std::stoi(size));
+      bench.sparse_sizes.push_back(size == "all" ? 0 : std::stoi(size));
     } catch (const std::exception&) {
       throw std::invalid_argument("--sizes must be comma-separated feature counts (got '" + args.sizes + "')");
     }
@@ -64,6 +65,14 @@ void RunBench(BenchArgs& args) {
     auto engine = vision::ParseEngine(name);
     if (!engine) throw std::invalid_argument("unknown engine '" + name + "' in --engines");
     bench.engines.push_back(*engine);
+  }
+  for (const std::string& name : SplitCommas(args.storages)) {
+    auto storage = hnn::ParseWeightStorage(name);
+    if (!storage) {
+      throw std::invalid_argument("unknown weight storage '" + name + "' in --storages (auto, csr, "
+                                  "blocked-float, blocked-half, on-the-fly)");
+    }
+    bench.opencl_storages.push_back(*storage);
   }
   if (args.quick) {
     bench.sparse_sizes = {500, 5000};
@@ -78,25 +87,42 @@ void RunBench(BenchArgs& args) {
   const nlohmann::json json = perf::RunThroughputBench(bench, runtime.get());
   calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
 
-  std::printf("%-16s %-7s %7s %9s %10s %9s %9s %5s %12s %8s\n", "case", "engine", "neurons",
-              "conn", "total ms", "weights", "solve", "iter", "energy", "prec1px");
+  if (json.contains("machine_read_gbps")) {
+    std::printf("machine read bandwidth: %.1f GB/s (%s)\n", json["machine_read_gbps"].get<double>(),
+                json["machine_read_method"].get<std::string>().c_str());
+  }
+  std::printf("%-12s %-20s %7s %9s %9s %8s %8s %5s %8s %6s %13s %8s\n", "case", "engine", "neurons",
+              "conn", "total ms", "weights", "solve", "steps", "ms/step", "roof", "energy",
+              "prec1px");
   for (const auto& run : json["runs"]) {
     if (run.contains("skipped")) {
       std::printf("%-16s %-7s skipped: %s\n", run["case"].get<std::string>().c_str(),
                   run["engine"].get<std::string>().c_str(), run["skipped"].get<std::string>().c_str());
       continue;
     }
-    std::printf("%-16s %-7s %7d %9lld %10.1f %9.1f %9.1f %5d %12.2f %8s\n",
-                run["case"].get<std::string>().c_str(), run["engine_used"].get<std::string>().c_str(),
+    std::string engine = run["engine"].get<std::string>();
+    if (run.contains("weight_storage") && engine.find(':') == std::string::npos) {
+      engine += ":" + run["weight_storage"].get<std::string>();
+    }
+    if (run["engine_used"].get<std::string>() != run["engine"].get<std::string>().substr(0, run["engine_used"].get<std::string>().size())) {
+      engine = run["engine_used"].get<std::string>() + " (fallback)";
+    }
+    std::printf("%-12s %-20s %7d %9lld %9.1f %8.1f %8.1f %5.0f %8.3f %6s %13.2f %8s\n",
+                run["case"].get<std::string>().c_str(), engine.c_str(),
                 run["n_neurons"].get<int>(), run["n_connections"].get<long long>(),
                 run["ms"].get<double>(), run["weights_ms"].get<double>(),
-                run["solve_ms"].get<double>(), run["iterations"].get<int>(),
+                run["solve_ms"].get<double>(), run["steps"].get<double>(),
+                run["time_per_step_ms"].get<double>(),
+                run.contains("roofline_fraction")
+                    ? (std::to_string(static_cast<int>(std::lround(100 * run["roofline_fraction"].get<double>()))) + "%").c_str()
+                    : "-",
                 run["energy_final"].get<double>(),
                 run.contains("precision_1px")
                     ? std::to_string(run["precision_1px"].get<double>()).substr(0, 5).c_str()
                     : "-");
   }
-  std::printf("StereoSGBM (same pair, %d disparities): %.1f ms\n",
+  std::printf("StereoSGBM (same pair, %d disparities): %.1f ms (x_stereo_sgbm in the JSON: each "
+              "case's total / this)\n",
               json["stereo_sgbm"]["num_disparities"].get<int>(), json["stereo_sgbm"]["ms"].get<double>());
   if (json.contains("batch")) {
     const auto& b = json["batch"];
@@ -139,8 +165,13 @@ void AddBenchCommand(CLI::App& app) {
   cmd->add_option("--ground-truth-scale", args->bench.ground_truth_scale,
                   "Stored value / scale = disparity")
       ->capture_default_str();
-  cmd->add_option("--sizes", args->sizes, "Sparse cases: --max-features values, comma-separated")
+  cmd->add_option("--sizes", args->sizes,
+                  "Sparse cases: --max-features values, comma-separated; 'all' = every feature "
+                  "(the default match)")
       ->capture_default_str();
+  cmd->add_option("--storages", args->storages,
+                  "Run the opencl engine once per weight storage listed, e.g. "
+                  "csr,blocked-float,blocked-half,on-the-fly (default: as --weights says)");
   cmd->add_option("--dense-features", args->bench.dense_features,
                   "Features per image of the thesis-sized --dense case (0 = none)")
       ->capture_default_str();

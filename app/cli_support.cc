@@ -166,6 +166,14 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->capture_default_str();
   cmd->add_option("--decode", decode, "thesis (row max, column max, threshold) or one-to-one")
       ->capture_default_str();
+  cmd->add_option("--weights", weight_storage,
+                  "opencl engine weight storage: auto (row blocks when rows are short, else csr), "
+                  "csr, blocked-float, blocked-half, on-the-fly (docs/engine.md)")
+      ->capture_default_str();
+  cmd->add_option("--min-confidence", o.min_confidence,
+                  "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least "
+                  "this: fewer, surer matches")
+      ->capture_default_str();
   cmd->add_option("--threshold", o.decode.threshold, "Minimum activation of an accepted match")
       ->capture_default_str();
   cmd->add_option("--memory-budget-mb", memory_budget_mb,
@@ -220,6 +228,12 @@ void MatcherFlags::Resolve() {
     o.dynamics.activation = hnn::Activation::kDiscrete;
   } else {
     throw std::invalid_argument("unknown --activation '" + activation + "'");
+  }
+  if (auto w = hnn::ParseWeightStorage(weight_storage)) {
+    o.opencl.storage = *w;
+  } else {
+    throw std::invalid_argument("unknown --weights '" + weight_storage +
+                                "' (auto, csr, blocked-float, blocked-half, on-the-fly)");
   }
   if (auto m = hnn::ParseDecodeMethod(decode)) {
     o.decode.method = *m;

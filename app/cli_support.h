@@ -34,6 +34,7 @@ struct MatcherFlags {
   std::string initial_state = "off";
   std::string activation = "continuous";
   std::string decode = "thesis";
+  std::string weight_storage = "auto";
   std::string network = "feature";
   std::string zrange;
   double memory_budget_mb = 2048.0;

@@ -23,7 +23,7 @@ function(hnnstereo_add_test name)
     HNNSTEREO_BINARY="$<TARGET_FILE:hnnstereo>")
   add_test(NAME ${name} COMMAND ${name})
   set_tests_properties(${name} PROPERTIES
-    ENVIRONMENT "POCL_CACHE_DIR=${PROJECT_BINARY_DIR}/pocl-cache"
+    ENVIRONMENT "POCL_CACHE_DIR=${PROJECT_BINARY_DIR}/pocl-cache;HNNSTEREO_KERNEL_CACHE=${PROJECT_BINARY_DIR}/kernel-cache"
     LABELS "${ARG_LABELS}" TIMEOUT 900)
 endfunction()
 

@@ -1,5 +1,6 @@
 #include "host/opencl_engine.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -47,6 +48,25 @@ cl::Buffer MakeBuffer(const cl::Context& context, cl_mem_flags flags, std::vecto
 
 }  // namespace
 
+std::string_view WeightStorageName(WeightStorage storage) {
+  switch (storage) {
+    case WeightStorage::kAuto: return "auto";
+    case WeightStorage::kCsr: return "csr";
+    case WeightStorage::kBlockedFloat: return "blocked-float";
+    case WeightStorage::kBlockedHalf: return "blocked-half";
+    case WeightStorage::kOnTheFly: return "on-the-fly";
+  }
+  return "auto";
+}
+
+std::optional<WeightStorage> ParseWeightStorage(std::string_view name) {
+  for (WeightStorage s : {WeightStorage::kAuto, WeightStorage::kCsr, WeightStorage::kBlockedFloat,
+                          WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly}) {
+    if (WeightStorageName(s) == name) return s;
+  }
+  return std::nullopt;
+}
+
 std::string KernelBuildOptions(const EnergyOptions& energy, const DynamicsOptions& dynamics) {
   return "-DOBJECTIVE=" + std::to_string(static_cast<int>(energy.objective)) +
          " -DCOMPAT_TYPE=" + std::to_string(static_cast<int>(energy.compatibility)) +
@@ -60,12 +80,97 @@ namespace {
 class DeviceNetwork {
  public:
   DeviceNetwork(ocl::Runtime& runtime, const ProblemBatch& problems, const EnergyOptions& energy,
-                const DynamicsOptions& dynamics, std::size_t memory_budget_bytes)
+                const DynamicsOptions& dynamics, std::size_t memory_budget_bytes,
+                const OpenClEngineOptions& engine = {WeightStorage::kCsr, 0})
       : runtime_(runtime), queue_(runtime.queue()) {
     if (auto error = energy.Check(); !error.empty()) throw std::invalid_argument(error);
     if (auto error = dynamics.Check(); !error.empty()) throw std::invalid_argument(error);
     Combine(problems, energy, dynamics, memory_budget_bytes);
-    Upload(energy, dynamics);
+    storage_ = ResolveStorage(engine.storage);
+    if (storage_ == WeightStorage::kCsr) {
+      Upload(energy, dynamics);
+    } else {
+      UploadBlocked(energy, dynamics, engine.rows_per_item, memory_budget_bytes);
+    }
+  }
+
+  WeightStorage storage() const { return storage_; }
+  int launches() const { return launches_; }
+  int blocking_reads() const { return blocking_reads_; }
+
+  // The bytes one step reads under each layout's model: CSR reads every weight (4 B), the
+  // neighbour lists per neuron and V[b] per connection (gathered, mostly from cache: counted
+  // once per neuron); blocked reads every block (4 or 2 B a slot pair), one neighbour index per
+  // block and V of each neighbour row (ROW_PAD floats, from cache: counted once per row);
+  // on the fly reads no weights, only V of each neighbour row and the per-slot data.
+  double StepBytes() const {
+    const NetworkLayout& L = net_.layout;
+    const double neurons = L.n_neurons, rows = L.n_rows;
+    const double neighbours = static_cast<double>(L.feature_neighbours.size());
+    switch (storage_) {
+      case WeightStorage::kCsr:
+        return 4.0 * static_cast<double>(L.n_connections()) + 12.0 * neurons + 8.0 * neurons;
+      case WeightStorage::kBlockedFloat:
+      case WeightStorage::kBlockedHalf: {
+        const double slot_pair = storage_ == WeightStorage::kBlockedHalf ? 2.0 : 4.0;
+        return slot_pair * neighbours * row_pad_ * row_pad_ + 4.0 * neighbours +
+               16.0 * rows * row_pad_;
+      }
+      default:
+        return 4.0 * neighbours + 28.0 * rows * row_pad_;
+    }
+  }
+
+  void BuildBlocks() {
+    if (storage_ == WeightStorage::kOnTheFly) return;
+    queue_.enqueueNDRangeKernel(build_blocks_, cl::NullRange, row_range_, local_);
+    ++launches_;
+  }
+  // One fused step from state buffer `parity` into the other; column sums first when the
+  // network has column uniqueness.
+  void Step(int parity) {
+    if (net_.layout.column_uniqueness) {
+      queue_.enqueueNDRangeKernel(column_sums_blocked_[parity], cl::NullRange, column_range_,
+                                  local_);
+      ++launches_;
+    }
+    queue_.enqueueNDRangeKernel(step_[parity], cl::NullRange, step_range_, step_local_);
+    ++launches_;
+  }
+  std::vector<float> RowEnergies() {
+    std::vector<float> energies(static_cast<std::size_t>(n_networks()));
+    queue_.enqueueNDRangeKernel(segment_sum_, cl::NullRange, segment_range_, local_);
+    queue_.enqueueReadBuffer(network_energy_, CL_TRUE, 0, sizeof(float) * energies.size(),
+                             energies.data());
+    ++launches_;
+    ++blocking_reads_;
+    return energies;
+  }
+  // Final V and u per neuron: network p is read from the state buffer it stopped on.
+  void ReadBlockedState(const std::vector<int>& stop_parity, std::vector<float>* V,
+                        std::vector<float>* u) {
+    const std::size_t slots = slot_count_;
+    std::vector<float> Vs[2], us[2];
+    for (int b = 0; b < 2; ++b) {
+      Vs[b].resize(slots);
+      us[b].resize(slots);
+      queue_.enqueueReadBuffer(V_state_[b], CL_TRUE, 0, sizeof(float) * slots, Vs[b].data());
+      queue_.enqueueReadBuffer(u_state_[b], CL_TRUE, 0, sizeof(float) * slots, us[b].data());
+      blocking_reads_ += 2;
+    }
+    const NetworkLayout& L = net_.layout;
+    V->assign(static_cast<std::size_t>(L.n_neurons), 0.0f);
+    u->assign(static_cast<std::size_t>(L.n_neurons), 0.0f);
+    for (int i = 0; i < L.n_rows; ++i) {
+      const int b = stop_parity[static_cast<std::size_t>(row_network_[static_cast<std::size_t>(i)])];
+      for (int a = L.row_offsets[static_cast<std::size_t>(i)];
+           a < L.row_offsets[static_cast<std::size_t>(i) + 1]; ++a) {
+        const std::size_t slot = static_cast<std::size_t>(i) * static_cast<std::size_t>(row_pad_) +
+                                 static_cast<std::size_t>(a - L.row_offsets[static_cast<std::size_t>(i)]);
+        (*V)[static_cast<std::size_t>(a)] = Vs[b][slot];
+        (*u)[static_cast<std::size_t>(a)] = us[b][slot];
+      }
+    }
   }
 
   const CombinedNetwork& network() const { return net_; }
@@ -107,6 +212,184 @@ class DeviceNetwork {
   }
   std::vector<float> ReadField() { return Read(field_, static_cast<std::size_t>(net_.layout.n_neurons)); }
   void Finish() { queue_.finish(); }
+
+ private:
+  int MaxRowCount() const {
+    const NetworkLayout& L = net_.layout;
+    int most = 0;
+    for (int i = 0; i < L.n_rows; ++i) {
+      most = std::max(most, L.row_offsets[static_cast<std::size_t>(i) + 1] -
+                                L.row_offsets[static_cast<std::size_t>(i)]);
+    }
+    return most;
+  }
+
+  // Auto: row blocks when padding every row to ROW_PAD slots at most doubles the stored
+  // weights (the disparity network's top-K rows, the dense network), else CSR.
+  WeightStorage ResolveStorage(WeightStorage asked) {
+    row_pad_ = std::max(4, (MaxRowCount() + 3) / 4 * 4);
+    const NetworkLayout& L = net_.layout;
+    const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
+    if (asked != WeightStorage::kAuto) return asked;
+    return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
+               ? WeightStorage::kBlockedFloat
+               : WeightStorage::kCsr;
+  }
+
+  void UploadBlocked(const EnergyOptions& energy, const DynamicsOptions& dynamics,
+                     int rows_per_item, std::size_t memory_budget_bytes) {
+    const NetworkLayout& L = net_.layout;
+    const cl::Context& context = runtime_.context();
+    const int weights_mode = storage_ == WeightStorage::kBlockedFloat ? 0
+                             : storage_ == WeightStorage::kBlockedHalf ? 1 : 2;
+    const std::size_t n_blocks = L.feature_neighbours.size();
+    const std::size_t block_bytes =
+        weights_mode == 2 ? 0
+                          : n_blocks * static_cast<std::size_t>(row_pad_ * row_pad_) *
+                                (weights_mode == 1 ? 2u : 4u);
+    if (block_bytes > memory_budget_bytes) {
+      throw std::runtime_error(
+          "the row-blocked weights need " + std::to_string(block_bytes >> 20) +
+          " MB, over the memory budget of " + std::to_string(memory_budget_bytes >> 20) +
+          " MB; use tighter gating, --max-features, or on-the-fly weights");
+    }
+    const std::string options = KernelBuildOptions(energy, dynamics) +
+                                " -DROW_PAD=" + std::to_string(row_pad_) +
+                                " -DWEIGHTS=" + std::to_string(weights_mode);
+    const cl::Program& program = runtime_.Program("hopfield", options);
+    slot_count_ = std::max<std::size_t>(1, static_cast<std::size_t>(L.n_rows) *
+                                               static_cast<std::size_t>(row_pad_));
+    std::vector<cl_float2> slot_right(slot_count_);
+    std::vector<float> slot_correlation(slot_count_, 0.0f), slot_bias(slot_count_, 0.0f);
+    std::vector<float> V0(slot_count_, 0.0f), u0(slot_count_, -1.0f);
+    std::vector<int> slot_column(slot_count_, 0);
+    host_blocked_.row_count.assign(static_cast<std::size_t>(std::max(L.n_rows, 1)), 0);
+    row_network_.assign(static_cast<std::size_t>(std::max(L.n_rows, 1)), 0);
+    for (int i = 0; i < L.n_rows; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const int first = L.row_offsets[ui], count = L.row_offsets[ui + 1] - first;
+      host_blocked_.row_count[ui] = count;
+      for (int k = 0; k < row_pad_; ++k) {
+        const std::size_t slot = ui * static_cast<std::size_t>(row_pad_) + static_cast<std::size_t>(k);
+        // Padded slots: finite data (the left point itself), V = 0, never written.
+        slot_right[slot] = net_.feature_point[ui];
+        if (k >= count) continue;
+        const auto a = static_cast<std::size_t>(first + k);
+        slot_right[slot] = net_.right_point[a];
+        slot_correlation[slot] = net_.correlation[a];
+        slot_bias[slot] = net_.bias[a];
+        slot_column[slot] = L.neuron_column[a];
+        V0[slot] = net_.V[a];
+        u0[slot] = net_.u[a];
+        row_network_[ui] = net_.network_of_neuron[a];
+      }
+    }
+    // Columns as padded slots (feature-vs-feature networks).
+    host_blocked_.column_offsets = L.column_offsets;
+    host_blocked_.column_slots.clear();
+    for (int a : L.column_neurons) {
+      const int i = L.neuron_row[static_cast<std::size_t>(a)];
+      host_blocked_.column_slots.push_back(i * row_pad_ + a - L.row_offsets[static_cast<std::size_t>(i)]);
+    }
+    host_blocked_.neighbour_offsets = L.feature_neighbour_offsets;
+    host_blocked_.neighbours = L.feature_neighbours;
+    host_blocked_.network_row_offsets = {0};
+    for (std::size_t p = 0; p + 1 < net_.network_offsets.size(); ++p) {
+      int rows = host_blocked_.network_row_offsets.back();
+      while (rows < L.n_rows && L.row_offsets[static_cast<std::size_t>(rows)] < net_.network_offsets[p + 1]) ++rows;
+      host_blocked_.network_row_offsets.push_back(rows);
+    }
+    const cl_mem_flags ro = CL_MEM_READ_ONLY;
+    std::vector<cl_float2> feature_point = net_.feature_point;
+    feature_point_ = MakeBuffer(context, ro, feature_point);
+    row_count_ = MakeBuffer(context, ro, host_blocked_.row_count);
+    neighbour_offsets_ = MakeBuffer(context, ro, host_blocked_.neighbour_offsets);
+    neighbours_ = MakeBuffer(context, ro, host_blocked_.neighbours);
+    column_offsets_ = MakeBuffer(context, ro, host_blocked_.column_offsets);
+    column_slots_ = MakeBuffer(context, ro, host_blocked_.column_slots);
+    slot_right_ = MakeBuffer(context, ro, slot_right);
+    slot_correlation_ = MakeBuffer(context, ro, slot_correlation);
+    slot_bias_ = MakeBuffer(context, ro, slot_bias);
+    slot_column_ = MakeBuffer(context, ro, slot_column);
+    std::vector<int> row_network = row_network_;
+    network_of_row_ = MakeBuffer(context, ro, row_network);
+    network_offsets_ = MakeBuffer(context, ro, host_blocked_.network_row_offsets);
+    std::vector<int> active(static_cast<std::size_t>(n_networks()), 1);
+    active_ = MakeBuffer(context, CL_MEM_READ_WRITE, active);
+    for (int b = 0; b < 2; ++b) {
+      std::vector<float> V = V0, u = u0;
+      V_state_[b] = MakeBuffer(context, CL_MEM_READ_WRITE, V);
+      u_state_[b] = MakeBuffer(context, CL_MEM_READ_WRITE, u);
+    }
+    const std::size_t rows = static_cast<std::size_t>(std::max(L.n_rows, 1));
+    row_energy_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * rows);
+    column_sums_ = cl::Buffer(context, CL_MEM_READ_WRITE,
+                              sizeof(float) * static_cast<std::size_t>(std::max(L.n_columns, 1)));
+    network_energy_ = cl::Buffer(context, CL_MEM_READ_WRITE,
+                                 sizeof(float) * static_cast<std::size_t>(n_networks()));
+    blocks_ = cl::Buffer(context, CL_MEM_READ_WRITE, std::max<std::size_t>(block_bytes, 4));
+
+    const EnergyParams params = Params(energy);
+    if (weights_mode != 2) {
+      build_blocks_ = cl::Kernel(program, "build_weight_blocks");
+      SetArgs(build_blocks_, static_cast<cl_int>(L.n_rows), row_count_, neighbour_offsets_,
+              neighbours_, slot_right_, slot_correlation_, feature_point_, params, blocks_);
+    }
+    // Rows per work-item: a GPU wants one row per work-item in work-groups of 64; on a CPU
+    // device PoCL runs each work-group of one work-item as a loop over its rows with the
+    // explicit vector loads (no cross-work-item vectorisation to undo).
+    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
+    if (rows_per_item <= 0) rows_per_item = gpu ? 1 : std::clamp(L.n_rows / 256, 1, 64);
+    const std::size_t items = (rows + static_cast<std::size_t>(rows_per_item) - 1) /
+                              static_cast<std::size_t>(rows_per_item);
+    const std::size_t step_local = gpu ? 64 : 1;
+    step_local_ = cl::NDRange(step_local);
+    step_range_ = cl::NDRange((items + step_local - 1) / step_local * step_local);
+    const cl_float two_B = static_cast<cl_float>(2.0 * energy.B);
+    const cl_float two_C = static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0);
+    for (int b = 0; b < 2; ++b) {
+      step_[b] = cl::Kernel(program, "neuron_step_blocked");
+      SetArgs(step_[b], static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
+              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_,
+              slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
+              two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
+              static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
+              V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_);
+      column_sums_blocked_[b] = cl::Kernel(program, "column_sums_blocked");
+      SetArgs(column_sums_blocked_[b], static_cast<cl_int>(L.n_columns), column_offsets_,
+              column_slots_, V_state_[b], column_sums_);
+    }
+    segment_sum_ = cl::Kernel(program, "segment_sum");
+    SetArgs(segment_sum_, network_offsets_, row_energy_, network_energy_,
+            cl::Local(sizeof(float) * kLocalSize));
+    row_range_ = RoundedRange(rows);
+    column_range_ = RoundedRange(static_cast<std::size_t>(std::max(L.n_columns, 1)));
+    segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
+  }
+
+  static EnergyParams Params(const EnergyOptions& energy) {
+    EnergyParams params{};
+    params.A = static_cast<float>(energy.A);
+    params.B = static_cast<float>(energy.B);
+    params.C = static_cast<float>(energy.C);
+    params.D = static_cast<float>(energy.D);
+    params.W1 = static_cast<float>(energy.W1);
+    params.W2 = static_cast<float>(energy.W2);
+    params.T = static_cast<float>(energy.T);
+    params.lambda = static_cast<float>(energy.lambda);
+    params.theta = static_cast<float>(energy.theta);
+    params.weight_offset = static_cast<float>(energy.weight_offset);
+    params.attenuation_centre = static_cast<float>(energy.attenuation_centre_px);
+    params.attenuation_slope = static_cast<float>(energy.attenuation_slope);
+    return params;
+  }
+
+ public:
+  // The network a row belongs to, for the batch.
+  int RowNetwork(int i) const { return row_network_[static_cast<std::size_t>(i)]; }
+  void SetActiveBlocked(const std::vector<int>& active) {
+    queue_.enqueueWriteBuffer(active_, CL_TRUE, 0, sizeof(int) * active.size(), active.data());
+  }
 
  private:
   void Combine(const ProblemBatch& problems, const EnergyOptions& energy,
@@ -220,19 +503,7 @@ class DeviceNetwork {
     network_energy_ = cl::Buffer(context, CL_MEM_READ_WRITE,
                                  sizeof(float) * static_cast<std::size_t>(n_networks()));
 
-    EnergyParams params{};
-    params.A = static_cast<float>(energy.A);
-    params.B = static_cast<float>(energy.B);
-    params.C = static_cast<float>(energy.C);
-    params.D = static_cast<float>(energy.D);
-    params.W1 = static_cast<float>(energy.W1);
-    params.W2 = static_cast<float>(energy.W2);
-    params.T = static_cast<float>(energy.T);
-    params.lambda = static_cast<float>(energy.lambda);
-    params.theta = static_cast<float>(energy.theta);
-    params.weight_offset = static_cast<float>(energy.weight_offset);
-    params.attenuation_centre = static_cast<float>(energy.attenuation_centre_px);
-    params.attenuation_slope = static_cast<float>(energy.attenuation_slope);
+    const EnergyParams params = Params(energy);
 
     build_weights_ = cl::Kernel(program, "build_weights");
     SetArgs(build_weights_, static_cast<cl_int>(n), left_point_, right_point_, correlation_,
@@ -284,15 +555,163 @@ class DeviceNetwork {
   cl::NDRange neuron_range_, line_range_, segment_range_;
   const cl::NDRange local_{kLocalSize};
 
+  // Row-blocked state.
+  struct HostBlocked {
+    std::vector<int> row_count, column_offsets, column_slots, neighbour_offsets, neighbours,
+        network_row_offsets;
+  };
+  WeightStorage storage_ = WeightStorage::kCsr;
+  int row_pad_ = 4;
+  std::size_t slot_count_ = 1;
+  int launches_ = 0, blocking_reads_ = 0;
+  HostBlocked host_blocked_;
+  std::vector<int> row_network_;
+  cl::Buffer row_count_, column_slots_, slot_right_, slot_correlation_, slot_bias_, slot_column_,
+      network_of_row_, blocks_, row_energy_, V_state_[2], u_state_[2];
+  cl::Kernel build_blocks_, step_[2], column_sums_blocked_[2];
+  cl::NDRange row_range_, column_range_, step_range_, step_local_{1};
+
  public:
   const cl::Buffer& field_buffer() const { return field_; }
 };
 
 }  // namespace
 
+namespace {
+
+// The convergence bookkeeping shared by both solve loops: records the energy of every active
+// network at `step`, and deactivates those whose test passed (thesis: |dE| below the tolerance
+// for `stable_checks` consecutive checks) or that reached the step limit. Returns whether any
+// network stopped at this check.
+bool CheckConvergence(int step, const std::vector<float>& energies, const DynamicsOptions& dynamics,
+                      std::vector<SolveReport>* reports, std::vector<int>* active,
+                      std::vector<double>* last_energy, std::vector<int>* stable,
+                      std::size_t* n_active) {
+  bool changed = false;
+  for (std::size_t p = 0; p < reports->size(); ++p) {
+    if (!(*active)[p]) continue;
+    SolveReport& report = (*reports)[p];
+    const double E = energies[p];
+    const double tolerance = dynamics.energy_tolerance * std::max(1, report.n_neurons);
+    if (step == 0) report.energy_initial = E;
+    report.energy_trace.push_back(E);
+    report.energy_trace_iterations.push_back(step);
+    if (step > 0) (*stable)[p] = std::abs(E - (*last_energy)[p]) <= tolerance ? (*stable)[p] + 1 : 0;
+    (*last_energy)[p] = E;
+    report.energy_final = E;
+    report.iterations = step;
+    if ((*stable)[p] >= dynamics.stable_checks || step >= dynamics.max_steps) {
+      report.converged = (*stable)[p] >= dynamics.stable_checks;
+      (*active)[p] = 0;
+      changed = true;
+      --*n_active;
+    }
+  }
+  return changed;
+}
+
+void Finish(const std::vector<float>& final_V, const std::vector<float>& final_u,
+            const CombinedNetwork& net, double weights_ms, double solve_ms,
+            std::vector<SolveReport>* reports) {
+  for (std::size_t p = 0; p < reports->size(); ++p) {
+    SolveReport& report = (*reports)[p];
+    report.termination = report.converged ? "converged" : "iteration limit";
+    report.weights_ms = weights_ms;
+    report.solve_ms = solve_ms;
+    report.activation.assign(final_V.begin() + net.network_offsets[p],
+                             final_V.begin() + net.network_offsets[p + 1]);
+    report.potential.assign(final_u.begin() + net.network_offsets[p],
+                            final_u.begin() + net.network_offsets[p + 1]);
+  }
+}
+
+// CSR layout: line sums, field and Euler step as three launches a step (the original engine).
+void SolveCsr(DeviceNetwork& device, const DynamicsOptions& dynamics,
+              std::vector<SolveReport>* reports) {
+  const std::size_t n = reports->size();
+  auto start = Clock::now();
+  device.BuildWeights();
+  device.Finish();
+  const double weights_ms = MillisecondsSince(start);
+  start = Clock::now();
+  std::vector<int> active(n, 1), stable(n, 0);
+  std::vector<double> last_energy(n, 0.0);
+  std::size_t n_active = n;
+  for (int step = 0;; ++step) {
+    device.Field();
+    if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
+      const bool changed = CheckConvergence(step, device.Energies(), dynamics, reports, &active,
+                                            &last_energy, &stable, &n_active);
+      if (n_active == 0) break;
+      if (changed) device.SetActive(active);
+    }
+    device.Euler();
+  }
+  const std::vector<float> final_V = device.ReadState();
+  const std::vector<float> final_u = device.ReadPotential();
+  Finish(final_V, final_u, device.network(), weights_ms, MillisecondsSince(start), reports);
+}
+
+// Row blocks: one fused launch a step (plus column sums for feature networks); the energy is
+// read every energy_interval steps. A network that stops at step s keeps its state V_s in the
+// buffer the step read from: its rows are never written again, so it is read back from there.
+void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
+                  std::vector<SolveReport>* reports) {
+  const std::size_t n = reports->size();
+  auto start = Clock::now();
+  device.BuildBlocks();
+  device.Finish();
+  const double weights_ms = MillisecondsSince(start);
+  start = Clock::now();
+  std::vector<int> active(n, 1), stable(n, 0), stop_parity(n, 0);
+  std::vector<double> last_energy(n, 0.0);
+  std::size_t n_active = n;
+  int parity = 0;
+  for (int step = 0;; ++step) {
+    device.Step(parity);
+    if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
+      const std::vector<int> before = active;
+      const bool changed = CheckConvergence(step, device.RowEnergies(), dynamics, reports,
+                                            &active, &last_energy, &stable, &n_active);
+      for (std::size_t p = 0; p < n; ++p) {
+        if (before[p] && !active[p]) stop_parity[p] = parity;
+      }
+      if (n_active == 0) break;
+      if (changed) device.SetActiveBlocked(active);
+    }
+    parity = 1 - parity;
+  }
+  std::vector<float> final_V, final_u;
+  device.ReadBlockedState(stop_parity, &final_V, &final_u);
+  Finish(final_V, final_u, device.network(), weights_ms, MillisecondsSince(start), reports);
+}
+
+}  // namespace
+
 SolveReport OpenClEngine::Solve(const MatchingProblem& problem, const EnergyOptions& energy,
                                 const DynamicsOptions& dynamics, std::size_t memory_budget_bytes) {
   return SolveBatch(ProblemBatch{problem}, energy, dynamics, memory_budget_bytes).front();
+}
+
+double OpenClEngine::WarmUp(const EnergyOptions& energy, const DynamicsOptions& dynamics,
+                           NetworkKind kind) {
+  const auto start = Clock::now();
+  // Three left features in a row, two candidates each: every kernel of the solve runs once.
+  MatchingProblem problem;
+  problem.kind = kind;
+  problem.n_columns = 4;
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector2f left(10.0f + 2.0f * static_cast<float>(i), 5.0f);
+    problem.left_points.push_back(left);
+    for (int k = 0; k < 2; ++k) {
+      problem.candidates.push_back({i, i + k, Eigen::Vector2f(left.x() - 3.0f - static_cast<float>(k), 5.0f),
+                                    0.0f, 0.5f});
+    }
+  }
+  DynamicsOptions short_run = dynamics;
+  short_run.max_steps = std::min(dynamics.max_steps, dynamics.energy_interval);
+  Solve(problem, energy, short_run);
+  return MillisecondsSince(start);
 }
 
 std::vector<float> OpenClEngine::BuildWeights(const MatchingProblem& problem,
@@ -330,7 +749,7 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
   if (problems.empty()) return {};
   std::vector<SolveReport> reports(problems.size());
   try {
-    DeviceNetwork device(runtime_, problems, energy, dynamics, memory_budget_bytes);
+    DeviceNetwork device(runtime_, problems, energy, dynamics, memory_budget_bytes, options_);
     const CombinedNetwork& net = device.network();
     for (std::size_t p = 0; p < problems.size(); ++p) {
       reports[p].engine = "opencl";
@@ -338,57 +757,16 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
       reports[p].n_neurons = net.network_offsets[p + 1] - net.network_offsets[p];
       reports[p].n_connections = net.connections[p];
     }
-    auto start = Clock::now();
-    device.BuildWeights();
-    device.Finish();
-    const double weights_ms = MillisecondsSince(start);
-
-    start = Clock::now();
-    std::vector<int> active(problems.size(), 1);
-    std::vector<double> last_energy(problems.size(), 0.0);
-    std::vector<int> stable(problems.size(), 0);
-    std::size_t n_active = problems.size();
-    for (int step = 0;; ++step) {
-      device.Field();
-      if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
-        const std::vector<float> energies = device.Energies();
-        bool active_changed = false;
-        for (std::size_t p = 0; p < problems.size(); ++p) {
-          if (!active[p]) continue;
-          SolveReport& report = reports[p];
-          const double E = energies[p];
-          const double tolerance = dynamics.energy_tolerance * std::max(1, report.n_neurons);
-          if (step == 0) report.energy_initial = E;
-          report.energy_trace.push_back(E);
-          report.energy_trace_iterations.push_back(step);
-          if (step > 0) stable[p] = std::abs(E - last_energy[p]) <= tolerance ? stable[p] + 1 : 0;
-          last_energy[p] = E;
-          report.energy_final = E;
-          report.iterations = step;
-          if (stable[p] >= dynamics.stable_checks || step >= dynamics.max_steps) {
-            report.converged = stable[p] >= dynamics.stable_checks;
-            active[p] = 0;
-            active_changed = true;
-            --n_active;
-          }
-        }
-        if (n_active == 0) break;
-        if (active_changed) device.SetActive(active);
-      }
-      device.Euler();
+    if (device.storage() == WeightStorage::kCsr) {
+      SolveCsr(device, dynamics, &reports);
+    } else {
+      SolveBlocked(device, dynamics, &reports);
     }
-    const std::vector<float> final_V = device.ReadState();
-    const std::vector<float> final_u = device.ReadPotential();
-    const double solve_ms = MillisecondsSince(start);
-    for (std::size_t p = 0; p < problems.size(); ++p) {
-      SolveReport& report = reports[p];
-      report.termination = report.converged ? "converged" : "iteration limit";
-      report.weights_ms = weights_ms;
-      report.solve_ms = solve_ms;
-      report.activation.assign(final_V.begin() + net.network_offsets[p],
-                               final_V.begin() + net.network_offsets[p + 1]);
-      report.potential.assign(final_u.begin() + net.network_offsets[p],
-                              final_u.begin() + net.network_offsets[p + 1]);
+    for (SolveReport& report : reports) {
+      report.weight_storage = std::string(WeightStorageName(device.storage()));
+      report.step_bytes = device.StepBytes();
+      report.launches = device.launches();
+      report.blocking_reads = device.blocking_reads();
     }
   } catch (const cl::Error& e) {
     throw ocl::OpenClError(e.what(), e.err());

@@ -4,6 +4,8 @@
 // kernels (kernels/hopfield.cl); many independent networks per launch.
 
 #include <cstddef>
+#include <optional>
+#include <string_view>
 #include <vector>
 
 #include "host/hopfield_network.h"
@@ -14,10 +16,29 @@
 
 namespace hnnstereo::hnn {
 
+/// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
+enum class WeightStorage {
+  kAuto,          ///< row blocks (float) when padding wastes < 2x, else CSR
+  kCsr,           ///< per-neuron contiguous weights, one work-item per neuron, 3 launches a step
+  kBlockedFloat,  ///< ROW_PAD x ROW_PAD float blocks per row pair, one fused launch a step
+  kBlockedHalf,   ///< the same blocks in half precision (vload_half), float accumulation
+  kOnTheFly,      ///< no stored weights: recomputed every step from per-neuron data
+};
+std::string_view WeightStorageName(WeightStorage storage);
+std::optional<WeightStorage> ParseWeightStorage(std::string_view name);
+
+struct OpenClEngineOptions {
+  WeightStorage storage = WeightStorage::kAuto;
+  /// Row-blocked kernels: rows per work-item (0 = automatic: 1 on a GPU, about n_rows / 256 on
+  /// a CPU device, where PoCL runs one work-item per work-group with explicit vector loads).
+  int rows_per_item = 0;
+};
+
 class OpenClEngine {
  public:
   /// The runtime must outlive the engine.
-  explicit OpenClEngine(ocl::Runtime& runtime) : runtime_(runtime) {}
+  explicit OpenClEngine(ocl::Runtime& runtime, OpenClEngineOptions options = {})
+      : runtime_(runtime), options_(options) {}
 
   SolveReport Solve(const MatchingProblem& problem, const EnergyOptions& energy,
                     const DynamicsOptions& dynamics,
@@ -30,6 +51,12 @@ class OpenClEngine {
                                       const DynamicsOptions& dynamics,
                                       std::size_t memory_budget_bytes = kDefaultMemoryBudgetBytes);
 
+  /// Builds the kernels for these options and runs them once on a tiny network, so that the
+  /// first real solve pays no compilation (PoCL compiles each kernel per local size at its
+  /// first launch; the program binary comes from the on-disk cache when it is warm). `serve`
+  /// and `pick --robot` call it before their first trigger. Returns the milliseconds it took.
+  double WarmUp(const EnergyOptions& energy, const DynamicsOptions& dynamics,
+                NetworkKind kind = NetworkKind::kFeatureVsDisparity);
   /// Kernel probes, for tests against the CPU reference and for benchmarks of single stages.
   /// The compatibility weights from the build_weights kernel, in layout order.
   std::vector<float> BuildWeights(const MatchingProblem& problem, const EnergyOptions& energy);
@@ -40,6 +67,7 @@ class OpenClEngine {
 
  private:
   ocl::Runtime& runtime_;
+  OpenClEngineOptions options_;
 };
 
 /// The -D build options that specialise kernels/hopfield.cl for these options.

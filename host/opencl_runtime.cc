@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <vector>
 
+#include "host/program_cache.h"
 #include "kernels/embedded_kernels.h"
 
 namespace hnnstereo::ocl {
@@ -160,9 +161,33 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
   const kernels::KernelSource& source = kernels::FindKernelSource(name);
   const auto key = std::make_tuple(std::string(source.hash), options);
   if (auto it = programs_.find(key); it != programs_.end()) return it->second;
+  const std::string build_options = options + " -cl-std=CL1.2";
+  // The on-disk binary cache (host/program_cache.h): a binary built earlier for this device,
+  // driver, source and options skips the compiler; anything wrong with it means a rebuild.
+  const std::string cache_dir = ProgramCacheDirectory();
+  std::string cache_key, cache_entry;
+  if (!cache_dir.empty()) {
+    const std::string device_name = device_.getInfo<CL_DEVICE_NAME>();
+    const std::string device_version = device_.getInfo<CL_DEVICE_VERSION>();
+    const std::string driver_version = device_.getInfo<CL_DRIVER_VERSION>();
+    cache_key = device_name + '|' + device_version + '|' + driver_version + '|' + source.hash +
+                '|' + build_options;
+    cache_entry = ProgramCacheEntryName(device_name, device_version, driver_version, source.hash,
+                                        build_options);
+    if (auto binary = ReadCachedProgram(cache_dir, cache_entry, cache_key)) {
+      try {
+        cl::Program cached(context_, std::vector<cl::Device>{device_},
+                           cl::Program::Binaries{*binary});
+        cached.build(std::vector<cl::Device>{device_}, build_options.c_str());
+        return programs_.emplace(key, std::move(cached)).first->second;
+      } catch (const cl::Error&) {
+        // a stale or foreign entry: build from source below and overwrite it
+      }
+    }
+  }
   cl::Program program(context_, std::string(source.source));
   try {
-    program.build(std::vector<cl::Device>{device_}, (options + " -cl-std=CL1.2").c_str());
+    program.build(std::vector<cl::Device>{device_}, build_options.c_str());
   } catch (const cl::BuildError& e) {
     std::string log;
     for (const auto& [device, text] : e.getBuildLog()) log += text;
@@ -174,6 +199,14 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
     } catch (const cl::Error&) {
     }
     throw ProgramBuildError(name, options, log.empty() ? ErrorName(e.err()) : log);
+  }
+  if (!cache_dir.empty()) {
+    try {
+      const auto binaries = program.getInfo<CL_PROGRAM_BINARIES>();
+      if (binaries.size() == 1) WriteCachedProgram(cache_dir, cache_entry, cache_key, binaries[0]);
+    } catch (const cl::Error&) {
+      // no binary to keep: the next process compiles again
+    }
   }
   return programs_.emplace(key, std::move(program)).first->second;
 }

@@ -28,6 +28,13 @@ struct SolveReport {
   /// Thesis engine only: E plus the continuous network's integral term after every update
   /// (the Lyapunov function of asynchronous updates; equals E for discrete neurons).
   std::vector<double> lyapunov_trace;
+  /// OpenCL engine: how the weights were held ("csr", "blocked-float", "blocked-half",
+  /// "on-the-fly"), the bytes one step reads from memory under that layout's model (weights,
+  /// neighbour lists and state; docs/benchmark.md), kernel launches and blocking reads.
+  std::string weight_storage;
+  double step_bytes = 0.0;
+  int launches = 0;
+  int blocking_reads = 0;
   double weights_ms = 0.0;            ///< weight construction
   double solve_ms = 0.0;              ///< the dynamics to convergence
 };

@@ -228,3 +228,173 @@ __kernel void segment_sum(__global const int* segment_offsets,
   }
   if (lid == 0) sums[segment] = scratch[0];
 }
+
+// ---------------------------------------------------------------------------------------------
+// Row-blocked engine (host/opencl_blocked.cc): the same network and the same Euler steps, laid
+// out for streaming. Every row (left feature) is padded to ROW_PAD neuron slots (slot i*ROW_PAD
+// + k; padded slots hold V = 0 and are never written), and the weights between row i and its
+// neighbour row j are one dense ROW_PAD x ROW_PAD block, stored contiguously in the order of
+// feature_neighbours(i). One work-item handles a run of whole rows and does, in one launch per
+// step: the compatibility input sum_b W_ab V_b (blocks read with vector loads; or computed on
+// the fly from per-slot data), the row sum, the uniqueness terms, the energy terms and the
+// Euler step (double-buffered V, so the update stays a Jacobi step as on the analog chip).
+//
+// Build options: ROW_PAD (multiple of 4), WEIGHTS (0 float blocks, 1 half blocks - vload_half,
+// core OpenCL 1.2 - with float accumulation, 2 on the fly: no stored weights at all).
+#ifndef ROW_PAD
+#define ROW_PAD 4
+#endif
+#ifndef WEIGHTS
+#define WEIGHTS 0
+#endif
+#define ROW_CHUNKS (ROW_PAD / 4)
+
+// The weight between slot (i, k) and slot (j, q), exactly as build_weights computes it.
+float slot_weight(const int i, const int k, const int j, const int q,
+                  __global const float2* slot_right, __global const float* slot_correlation,
+                  __global const float2* feature_point, const EnergyParams p) {
+  if (i == j && k == q) return 0.0f;
+  const float2 la = feature_point[i];
+  const float2 lb = feature_point[j];
+  float w = 2.0f * p.A * compatibility(la, slot_right[i * ROW_PAD + k],
+                                       slot_correlation[i * ROW_PAD + k], lb,
+                                       slot_right[j * ROW_PAD + q],
+                                       slot_correlation[j * ROW_PAD + q], p) +
+            p.weight_offset;
+#if DISTANCE_ATTENUATION
+  const float2 dl = la - lb;
+  w *= 1.0f / (1.0f + exp(p.attenuation_slope * (length(dl) - p.attenuation_centre)));
+#endif
+  return w;
+}
+
+// Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
+// W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q; padded slots get 0.
+__kernel void build_weight_blocks(const int n_rows,
+                                  __global const int* row_count,
+                                  __global const int* feature_neighbour_offsets,
+                                  __global const int* feature_neighbours,
+                                  __global const float2* slot_right,
+                                  __global const float* slot_correlation,
+                                  __global const float2* feature_point,
+                                  const EnergyParams p,
+#if WEIGHTS == 1
+                                  __global half* blocks
+#else
+                                  __global float* blocks
+#endif
+                                  ) {
+  const int i = get_global_id(0);
+  if (i >= n_rows) return;
+  const int ni = row_count[i];
+  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+    const int j = feature_neighbours[t];
+    const int nj = row_count[j];
+    for (int k = 0; k < ROW_PAD; ++k) {
+      for (int q = 0; q < ROW_PAD; ++q) {
+        const float w = (k < ni && q < nj)
+                            ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
+                            : 0.0f;
+        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + q;
+#if WEIGHTS == 1
+        vstore_half(w, at, blocks);
+#else
+        blocks[at] = w;
+#endif
+      }
+    }
+  }
+}
+
+// Column sums over padded slots (feature-vs-feature networks only): one work-item per column.
+__kernel void column_sums_blocked(const int n_columns,
+                                  __global const int* column_offsets,
+                                  __global const int* column_slots,
+                                  __global const float* V,
+                                  __global float* column_sums) {
+  const int k = get_global_id(0);
+  if (k >= n_columns) return;
+  float sum = 0.0f;
+  for (int t = column_offsets[k]; t < column_offsets[k + 1]; ++t) sum += V[column_slots[t]];
+  column_sums[k] = sum;
+}
+
+// One fused Euler step for rows [item * rows_per_item, +rows_per_item): reads V_in and u_in,
+// writes V_out, u_out and the energy term of every row at V_in (E = sum of row_energy, eq. 6.10).
+__kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
+                                  __global const int* row_count,
+                                  __global const int* feature_neighbour_offsets,
+                                  __global const int* feature_neighbours,
+#if WEIGHTS == 1
+                                  __global const half* blocks,
+#else
+                                  __global const float* blocks,
+#endif
+                                  __global const float2* slot_right,
+                                  __global const float* slot_correlation,
+                                  __global const float2* feature_point,
+                                  const EnergyParams p,
+                                  __global const float* slot_bias,
+                                  __global const int* slot_column,
+                                  __global const float* column_sums,
+                                  const float two_B, const float two_C,
+                                  __global const int* network_of_row,
+                                  __global const int* active,
+                                  const float dt, const float inv_tau, const float alpha,
+                                  __global const float* V_in, __global const float* u_in,
+                                  __global float* V_out, __global float* u_out,
+                                  __global float* row_energy) {
+  const int first = get_global_id(0) * rows_per_item;
+  const int last = min(n_rows, first + rows_per_item);
+  for (int i = first; i < last; ++i) {
+    const int base = i * ROW_PAD;
+    const int ni = row_count[i];
+    // A frozen (converged) network is not touched: the state buffer it stopped on keeps V_s.
+    if (!active[network_of_row[i]]) continue;
+    float acc[ROW_PAD];
+    for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
+    for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+      const int j = feature_neighbours[t];
+#if WEIGHTS == 2
+      const int nj = row_count[j];
+      for (int q = 0; q < nj; ++q) {
+        const float vb = V_in[j * ROW_PAD + q];
+        if (vb == 0.0f) continue;
+        for (int k = 0; k < ni; ++k) {
+          acc[k] += slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p) * vb;
+        }
+      }
+#else
+      float4 v[ROW_CHUNKS];
+      for (int c = 0; c < ROW_CHUNKS; ++c) v[c] = vload4(0, V_in + j * ROW_PAD + 4 * c);
+      const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
+      for (int k = 0; k < ROW_PAD; ++k) {
+        float4 s = (float4)(0.0f);
+        for (int c = 0; c < ROW_CHUNKS; ++c) {
+#if WEIGHTS == 1
+          s += vload_half4(0, blocks + block + k * ROW_PAD + 4 * c) * v[c];
+#else
+          s += vload4(0, blocks + block + k * ROW_PAD + 4 * c) * v[c];
+#endif
+        }
+        acc[k] += (s.x + s.y) + (s.z + s.w);
+      }
+#endif
+    }
+    float row_sum = 0.0f;
+    for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
+    float energy = 0.0f;
+    for (int k = 0; k < ni; ++k) {
+      const float va = V_in[base + k];
+      float sum = acc[k] - two_B * (row_sum - va);
+      if (two_C != 0.0f) sum -= two_C * (column_sums[slot_column[base + k]] - va);
+      const float ia = slot_bias[base + k];
+      energy -= va * (0.5f * sum + ia);
+      const float ua = u_in[base + k];
+      const float next = ua + dt * (-ua * inv_tau + sum + ia);
+      u_out[base + k] = next;
+      V_out[base + k] = activate(next, alpha, va);
+    }
+    row_energy[i] = energy;
+  }
+}

@@ -5,9 +5,11 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <stdexcept>
 
 #include "host/opencl_engine.h"
+#include "perf/memory_bandwidth.h"
 #include "vision/candidates.h"
 #include "vision/correlation.h"
 #include "vision/features.h"
@@ -73,7 +75,10 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
   }
 
   std::vector<Case> cases;
-  for (int size : options.sparse_sizes) cases.push_back({"sparse-" + std::to_string(size), size, false});
+  for (int size : options.sparse_sizes) {
+    cases.push_back({size > 0 ? "sparse-" + std::to_string(size) : std::string("sparse-all"), size,
+                     false});
+  }
   if (options.dense_features > 0) {
     cases.push_back({"dense-" + std::to_string(options.dense_features) + "x" +
                          std::to_string(options.dense_features),
@@ -95,16 +100,39 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
   json["repeats"] = options.repeats;
   json["warmup"] = options.warmup;
   json["bytes_per_second_model"] =
-      "per Euler step: 4 B weight + 4 B activation per connection, 32 B per neuron (state, "
-      "field, bias, sums); thesis engine: 4 B weight + 8 B activation per connection visited";
+      "opencl: SolveReport::step_bytes per Euler step (the bytes the weight layout must read: "
+      "csr 4 B a connection + 20 B a neuron; row blocks 4 or 2 B a slot pair + 4 B a block + "
+      "16 B a slot; on the fly 4 B a block + 28 B a slot), cpu: 8 B weight + 8 B activation per "
+      "connection (double), thesis engine: 4 B weight + 8 B activation per connection visited";
+  if (options.measure_bandwidth) {
+    const ReadBandwidth bandwidth = MeasureReadBandwidth();
+    json["machine_read_gbps"] = bandwidth.gbps;
+    json["machine_read_gbps_median"] = bandwidth.median_gbps;
+    json["machine_read_method"] = bandwidth.method;
+  }
+  const double machine_gbps = json.value("machine_read_gbps", 0.0);
   nlohmann::json runs = nlohmann::json::array();
   nlohmann::json dense_by_engine;
 
+  // (engine, storage) pairs: the opencl engine once per storage asked for.
+  std::vector<std::pair<hnn::EngineKind, std::optional<hnn::WeightStorage>>> variants;
+  for (hnn::EngineKind engine : options.engines) {
+    if (engine == hnn::EngineKind::kOpenCL && !options.opencl_storages.empty()) {
+      for (hnn::WeightStorage storage : options.opencl_storages) variants.push_back({engine, storage});
+    } else {
+      variants.push_back({engine, std::nullopt});
+    }
+  }
   for (const Case& c : cases) {
-    for (hnn::EngineKind engine : options.engines) {
-      const std::string what = std::string(vision::EngineName(engine)) + " " + c.name;
+    for (const auto& [engine, storage] : variants) {
+      std::string label(vision::EngineName(engine));
+      if (storage && options.opencl_storages.size() > 1) {
+        label += ":" + std::string(hnn::WeightStorageName(*storage));
+      }
+      const std::string what = label + " " + c.name;
       vision::MatcherOptions matcher = options.matcher;
       matcher.engine = engine;
+      if (storage) matcher.opencl.storage = *storage;
       matcher.features.max_features = c.max_features;
       matcher.candidates.rectified = true;
       matcher.candidates.max_disparity = options.max_disparity;
@@ -116,7 +144,7 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       }
       nlohmann::json run;
       run["case"] = c.name;
-      run["engine"] = vision::EngineName(engine);
+      run["engine"] = label;
       std::vector<double> total_ms, solve_ms, weights_ms;
       vision::MatchReport last;
       int runs_done = 0;
@@ -156,8 +184,12 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       // Connections visited: every connection per Euler step; n_neurons per thesis update.
       const double visited = thesis ? iterations * static_cast<double>(last.n_neurons)
                                     : iterations * connections;
-      const double bytes = thesis ? visited * 12.0
-                                  : iterations * (connections * 8.0 + last.n_neurons * 32.0);
+      // Steps run: the energy checks are at steps 0, interval, ..., so `iterations` + 1.
+      const double steps = thesis ? iterations : iterations + 1.0;
+      const double step_bytes = last.solve.step_bytes > 0
+                                    ? last.solve.step_bytes
+                                    : connections * 16.0 + last.n_neurons * 32.0;
+      const double bytes = thesis ? visited * 12.0 : steps * step_bytes;
       run["engine_used"] = last.solve.engine;
       run["n_left"] = last.n_left;
       run["n_right"] = last.n_right;
@@ -174,10 +206,24 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       run["weights_ms"] = Median(weights_ms);
       run["connections_per_second"] = solve > 0 ? visited / (solve / 1000.0) : 0.0;
       run["bytes_per_second"] = solve > 0 ? bytes / (solve / 1000.0) : 0.0;
+      run["steps"] = steps;
+      run["time_per_step_ms"] = steps > 0 ? solve / steps : 0.0;
+      if (!thesis) run["step_bytes"] = step_bytes;
+      if (!last.solve.weight_storage.empty()) {
+        run["weight_storage"] = last.solve.weight_storage;
+        run["launches"] = last.solve.launches;
+        run["blocking_reads"] = last.solve.blocking_reads;
+      }
+      if (machine_gbps > 0 && solve > 0) {
+        run["roofline_fraction"] = bytes / (solve / 1000.0) / 1e9 / machine_gbps;
+      }
       if (!ground_truth.empty()) {
         run["precision_1px"] = Precision(last, ground_truth, options.ground_truth_scale);
       }
-      if (c.dense) dense_by_engine[std::string(vision::EngineName(engine))] = run;
+      if (c.dense && !dense_by_engine.contains(label)) dense_by_engine[label] = run;
+      if (c.dense && engine == hnn::EngineKind::kOpenCL && !dense_by_engine.contains("opencl")) {
+        dense_by_engine["opencl"] = run;
+      }
       runs.push_back(run);
     }
   }
@@ -254,6 +300,13 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
     }
     json["stereo_sgbm"] = {{"ms", Median(sgbm_ms)}, {"num_disparities", num_disparities},
                            {"block_size", block}, {"mode", "SGBM"}};
+    // Every case's whole match as a multiple of StereoSGBM's time on the same pair, same run.
+    const double sgbm_median = Median(sgbm_ms);
+    for (auto& run : json["runs"]) {
+      if (run.contains("ms") && sgbm_median > 0) {
+        run["x_stereo_sgbm"] = run["ms"].get<double>() / sgbm_median;
+      }
+    }
   }
 
   if (dense_by_engine.contains("thesis") && dense_by_engine.contains("opencl") &&

@@ -19,10 +19,15 @@ struct ThroughputBenchOptions {
   std::string ground_truth;      ///< optional left disparity map (PNG/PGM) for a precision column
   double ground_truth_scale = 4; ///< stored value / scale = disparity (Middlebury 2003: 4)
   double max_disparity = 64;     ///< px
-  std::vector<int> sparse_sizes = {500, 1000, 2000, 5000};  ///< --max-features of sparse cases
+  /// --max-features of the sparse cases; 0 = every feature (the default match).
+  std::vector<int> sparse_sizes = {500, 1000, 2000, 5000, 0};
   int dense_features = 60;       ///< features per image of the thesis-sized --dense case; 0 = none
   std::vector<hnn::EngineKind> engines = {hnn::EngineKind::kOpenCL, hnn::EngineKind::kCpu,
                                           hnn::EngineKind::kThesis};
+  /// The opencl engine is run once per weight storage listed (engine label "opencl:<storage>"
+  /// when more than one); the default runs it as the matcher options say.
+  std::vector<hnn::WeightStorage> opencl_storages;
+  bool measure_bandwidth = true;  ///< machine_read_gbps in the same run (the roofline)
   /// The thesis engine stores N x N weights: run it only on problems up to this many neurons.
   int thesis_max_neurons = 4000;
   /// Update limit of the thesis engine, in sweeps (x neurons): large enough that it stops by

@@ -65,6 +65,21 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                {"max_epipolar_distance_px",
                                 options.candidates.max_epipolar_distance_px}};
   json["decode"] = hnn::DecodeMethodName(options.decode.method);
+  const auto& c = options.confidence;
+  json["confidence_options"] = {{"bias", c.bias},
+                                {"w_potential_margin", c.w_potential_margin},
+                                {"w_correlation", c.w_correlation},
+                                {"w_correlation_margin", c.w_correlation_margin},
+                                {"potential_margin_cap", c.potential_margin_cap}};
+  // Per-match output: one row per match, columns named once (compact for ~10^5 matches).
+  nlohmann::json rows = nlohmann::json::array();
+  for (const StereoMatch& m : report.matches) {
+    rows.push_back({m.left.x(), m.left.y(), m.right.x(), m.right.y(), m.activation, m.confidence,
+                    m.potential_margin, m.correlation, m.correlation_margin});
+  }
+  json["matches"] = {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence",
+                                  "potential_margin", "correlation", "correlation_margin"}},
+                     {"rows", std::move(rows)}};
   return json;
 }
 

@@ -1,6 +1,8 @@
 #include "vision/stereo_matcher.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 #include "host/cpu_engines.h"
@@ -33,7 +35,29 @@ std::optional<hnn::EngineKind> ParseEngine(std::string_view name) {
   return std::nullopt;
 }
 
+std::string ConfidenceOptions::Check() const {
+  for (double v : {bias, w_potential_margin, w_correlation, w_correlation_margin}) {
+    if (!std::isfinite(v)) return "confidence weights must be finite";
+  }
+  if (!(potential_margin_cap > 0.0 && std::isfinite(potential_margin_cap))) {
+    return "confidence potential_margin_cap must be > 0";
+  }
+  return {};
+}
+
+float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options) {
+  const double margin = std::min<double>(match.potential_margin, options.potential_margin_cap);
+  const double z = options.bias + options.w_potential_margin * margin +
+                   options.w_correlation * match.correlation +
+                   options.w_correlation_margin * match.correlation_margin;
+  return static_cast<float>(1.0 / (1.0 + std::exp(-z)));
+}
+
 std::string MatcherOptions::Check() const {
+  if (auto e = confidence.Check(); !e.empty()) return e;
+  if (!(min_confidence >= 0.0 && min_confidence <= 1.0)) {
+    return "min_confidence must be in [0, 1] (got " + std::to_string(min_confidence) + ")";
+  }
   if (auto e = features.Check(); !e.empty()) return e;
   if (auto e = candidates.Check(); !e.empty()) return e;
   if (auto e = energy.Check(); !e.empty()) return e;
@@ -97,7 +121,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                    options.memory_budget_bytes);
       break;
     case hnn::EngineKind::kOpenCL: {
-      hnn::OpenClEngine opencl(*runtime);
+      hnn::OpenClEngine opencl(*runtime, options.opencl);
       report.solve = opencl.Solve(problem, options.energy, options.dynamics,
                                   options.memory_budget_bytes);
       break;
@@ -111,11 +135,35 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const std::vector<hnn::DecodedMatch> decoded =
       hnn::Decode(problem, report.solve.activation, options.decode, &report.solve.potential);
   report.matches.reserve(decoded.size());
+  // Row ranges of the candidates (sorted by left feature), for the winners' margins.
+  std::vector<int> row_start(static_cast<std::size_t>(problem.n_left()) + 1, 0);
+  for (const hnn::Candidate& c : problem.candidates) ++row_start[static_cast<std::size_t>(c.left) + 1];
+  for (std::size_t i = 1; i < row_start.size(); ++i) row_start[i] += row_start[i - 1];
+  const std::vector<double>& u = report.solve.potential;
+  // A winner alone in its row is measured against a neuron held off by its inhibition (-2B).
+  const double lone_potential = -2.0 * options.energy.B;
   for (const hnn::DecodedMatch& m : decoded) {
     const hnn::Candidate& c = problem.candidates[static_cast<std::size_t>(m.neuron)];
-    report.matches.push_back({problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
-                              static_cast<float>(m.activation), c.left, c.column,
-                              static_cast<float>(m.activation)});
+    StereoMatch match{problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
+                      static_cast<float>(m.activation), c.left, c.column};
+    double other_u = lone_potential;
+    float other_correlation = -1.0f;
+    bool has_other = false;
+    for (int b = row_start[static_cast<std::size_t>(c.left)];
+         b < row_start[static_cast<std::size_t>(c.left) + 1]; ++b) {
+      if (b == m.neuron) continue;
+      const auto ub = static_cast<std::size_t>(b);
+      other_u = has_other ? std::max(other_u, u.empty() ? 0.0 : u[ub])
+                          : (u.empty() ? 0.0 : u[ub]);
+      other_correlation = std::max(other_correlation, problem.candidates[ub].correlation);
+      has_other = true;
+    }
+    const double own_u = u.empty() ? 0.0 : u[static_cast<std::size_t>(m.neuron)];
+    match.potential_margin = static_cast<float>(own_u - other_u);
+    match.correlation = c.correlation;
+    match.correlation_margin = c.correlation - other_correlation;
+    match.confidence = MatchConfidence(match, options.confidence);
+    if (match.confidence >= options.min_confidence) report.matches.push_back(match);
   }
   report.timing_ms.decode = MillisecondsSince(start);
   report.timing_ms.total = MillisecondsSince(total_start);

@@ -12,6 +12,7 @@
 #include "host/decode.h"
 #include "host/hopfield_network.h"
 #include "host/hopfield_options.h"
+#include "host/opencl_engine.h"
 #include "host/opencl_runtime.h"
 #include "host/solve_report.h"
 #include "vision/candidates.h"
@@ -22,6 +23,25 @@ namespace hnnstereo::vision {
 std::string_view EngineName(hnn::EngineKind engine);
 std::optional<hnn::EngineKind> ParseEngine(std::string_view name);
 
+/// The per-match confidence (docs/accuracy.md, "Confidence"): a logistic model of what the
+/// settled network knows about each winner,
+///   confidence = 1 / (1 + exp(-(bias + w_potential_margin * min(potential_margin, cap)
+///                               + w_correlation * correlation
+///                               + w_correlation_margin * correlation_margin))),
+/// where potential_margin = u(winner) - u(best other neuron of its row) (the network's own
+/// margin: at equilibrium u = sum_b W_ab V_b + I_a, so this is the winner's lead in support
+/// plus the row inhibition it exerts), correlation = the winner's ZNCC and correlation_margin =
+/// its ZNCC minus the best other candidate's of the row. Defaults: fitted by logistic regression
+/// (within 1 px = correct) on the five shared Middlebury pairs, scripts/fit_confidence.py.
+struct ConfidenceOptions {
+  double bias = 0.0;
+  double w_potential_margin = 1.0;
+  double w_correlation = 0.0;
+  double w_correlation_margin = 0.0;
+  double potential_margin_cap = 8.0;  ///< margins beyond this carry no more information
+  std::string Check() const;
+};
+
 struct MatcherOptions {
   FeatureOptions features;          ///< same detector on both images
   CandidateOptions candidates;
@@ -29,7 +49,12 @@ struct MatcherOptions {
   hnn::EnergyOptions energy;
   hnn::DynamicsOptions dynamics;
   hnn::DecodeOptions decode;
+  ConfidenceOptions confidence;
+  /// Drop decoded matches whose confidence is below this (0 keeps all): trades density for
+  /// precision (docs/accuracy.md, "Ranked by confidence").
+  double min_confidence = 0.0;
   hnn::EngineKind engine = hnn::EngineKind::kOpenCL;
+  hnn::OpenClEngineOptions opencl;  ///< weight storage and work split of the opencl engine
   std::size_t memory_budget_bytes = hnn::kDefaultMemoryBudgetBytes;
   std::string Check() const;
 };
@@ -40,9 +65,15 @@ struct StereoMatch {
   float activation;  ///< the winner's final V (saturates near 1: not a ranking)
   int left_index;
   int column;
-  /// In [0, 1], higher = more likely correct; ranks matches (docs/accuracy.md, "Confidence").
+  /// In [0, 1], higher = more likely correct; ranks matches (ConfidenceOptions).
   float confidence = 0.0f;
+  float potential_margin = 0.0f;    ///< u(winner) - u(best other neuron of its row)
+  float correlation = 0.0f;         ///< the winner's ZNCC
+  float correlation_margin = 0.0f;  ///< its ZNCC - the best other candidate's of the row
 };
+
+/// The confidence of `match` from its potential_margin, correlation and correlation_margin.
+float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);
 
 struct TimingMs {
   double features = 0, candidates = 0, weights = 0, solve = 0, decode = 0, total = 0;

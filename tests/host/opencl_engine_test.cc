@@ -2,6 +2,7 @@
 // Run under POCL_WORK_GROUP_METHOD=loopvec and =cbs (tests/host/CMakeLists.txt).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -159,6 +160,89 @@ TEST_F(OpenClEngineTest, Figure61ToyReachesTheGlobalAssignment) {
   const auto matches = Decode(problem, report.activation, DecodeOptions{});
   ASSERT_EQ(matches.size(), 3u);
   for (const DecodedMatch& m : matches) EXPECT_EQ(m.left, m.column);
+}
+
+// Every weight storage of the opencl engine (row blocks in float and half, on the fly, CSR)
+// solves the same network as the cpu reference: same matches, same energies (half-precision
+// blocks within their rounding).
+class OpenClStorageTest : public OpenClEngineTest,
+                          public ::testing::WithParamInterface<WeightStorage> {};
+
+TEST_P(OpenClStorageTest, SolveAgreesWithTheCpuEngine) {
+  const WeightStorage storage = GetParam();
+  const double tolerance = storage == WeightStorage::kBlockedHalf ? 2e-3 : 1e-4;
+  for (std::uint64_t seed : {301u, 302u, 303u}) {
+    for (Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
+      for (int max_per_row : {0, 4}) {
+        const MatchingProblem problem = testing::SyntheticProblem(seed, 150, 50, false, max_per_row);
+        EnergyOptions energy;
+        energy.support_radius_px = 15.0;
+        energy.objective = seed == 302u ? Objective::kThesis : Objective::kGeometrySimilarity;
+        DynamicsOptions dynamics;
+        dynamics.activation = activation;
+        const SolveReport cpu = SolveCpu(problem, energy, dynamics);
+        OpenClEngine engine(*runtime_, {storage, 0});
+        const SolveReport opencl = engine.Solve(problem, energy, dynamics);
+        const std::string what = std::string(WeightStorageName(storage)) + " seed " +
+                                 std::to_string(seed) + " per-row " + std::to_string(max_per_row) +
+                                 (activation == Activation::kContinuous ? " continuous" : " discrete");
+        EXPECT_EQ(opencl.weight_storage, WeightStorageName(storage)) << what;
+        EXPECT_EQ(MatchedNeurons(problem, opencl), MatchedNeurons(problem, cpu)) << what;
+        EXPECT_NEAR(opencl.energy_initial, cpu.energy_initial,
+                    tolerance * std::abs(cpu.energy_initial)) << what;
+        EXPECT_NEAR(opencl.energy_final, cpu.energy_final, tolerance * EnergyScale(cpu)) << what;
+        EXPECT_EQ(opencl.converged, cpu.converged) << what;
+      }
+    }
+  }
+}
+
+TEST_P(OpenClStorageTest, DenseNetworkAgreesWithTheCpuEngine) {
+  const MatchingProblem problem = testing::SyntheticProblem(56, 30, 10, /*dense=*/true);
+  EnergyOptions energy;
+  energy.distance_attenuation = true;
+  const SolveReport cpu = SolveCpu(problem, energy, DynamicsOptions{});
+  OpenClEngine engine(*runtime_, {GetParam(), 0});
+  const SolveReport opencl = engine.Solve(problem, energy, DynamicsOptions{});
+  EXPECT_EQ(MatchedNeurons(problem, opencl), MatchedNeurons(problem, cpu));
+  const double tolerance = GetParam() == WeightStorage::kBlockedHalf ? 2e-3 : 1e-4;
+  EXPECT_NEAR(opencl.energy_final, cpu.energy_final, tolerance * EnergyScale(cpu));
+}
+
+TEST_P(OpenClStorageTest, BatchEqualsIndependentSolves) {
+  ProblemBatch batch;
+  for (std::uint64_t seed : {211u, 212u, 213u}) {
+    batch.push_back(testing::SyntheticProblem(seed, 60 + 30 * static_cast<int>(seed % 3), 30, false, 4));
+  }
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  OpenClEngine engine(*runtime_, {GetParam(), 0});
+  const std::vector<SolveReport> together = engine.SolveBatch(batch, energy, DynamicsOptions{});
+  ASSERT_EQ(together.size(), batch.size());
+  for (std::size_t p = 0; p < batch.size(); ++p) {
+    const SolveReport alone = engine.Solve(batch[p], energy, DynamicsOptions{});
+    EXPECT_EQ(together[p].iterations, alone.iterations) << "network " << p;
+    EXPECT_NEAR(together[p].energy_final, alone.energy_final, 1e-4 * std::abs(alone.energy_final));
+    EXPECT_EQ(MatchedNeurons(batch[p], together[p]), MatchedNeurons(batch[p], alone));
+    EXPECT_EQ(together[p].activation, alone.activation) << "network " << p;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Storages, OpenClStorageTest,
+                         ::testing::Values(WeightStorage::kCsr, WeightStorage::kBlockedFloat,
+                                           WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly),
+                         [](const ::testing::TestParamInfo<WeightStorage>& info) {
+                           std::string name(WeightStorageName(info.param));
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
+
+TEST(WeightStorageNames, RoundTrip) {
+  for (WeightStorage s : {WeightStorage::kAuto, WeightStorage::kCsr, WeightStorage::kBlockedFloat,
+                          WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly}) {
+    EXPECT_EQ(ParseWeightStorage(WeightStorageName(s)), s);
+  }
+  EXPECT_FALSE(ParseWeightStorage("fast").has_value());
 }
 
 }  // namespace

@@ -1,0 +1,178 @@
+#!/usr/bin/env python3
+"""Fits the matcher's confidence model (vision/stereo_matcher.h, ConfidenceOptions) and measures
+how well it ranks, on Middlebury pairs with ground truth.
+
+For every pair it runs `hnnstereo match` (rectified, the pair's disparity range, the default
+preset) with --report, reads the per-match features of the report (potential_margin,
+correlation, correlation_margin), labels each match correct when its disparity is within 1 px of
+the ground truth (rounded, as `eval` scores), and fits a logistic regression
+P(correct) = sigmoid(b + w . features) by Newton's method (IRLS), pooled over the pairs.
+
+It prints the coefficients to paste into ConfidenceOptions, and for each pair - fitted on the
+OTHER pairs (leave-one-pair-out), so the figure is one the model has not seen - the error rate of
+all matches and of the top 25 / 50 / 75 % by confidence.
+
+    python3 scripts/fit_confidence.py --binary build/hnnstereo --dataset ../shared/datasets
+Needs numpy and Pillow (pip install numpy pillow).
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+from PIL import Image
+
+FEATURES = ["potential_margin", "correlation", "correlation_margin"]
+
+
+def read_pfm(path):
+    with open(path, "rb") as f:
+        magic = f.readline().strip()
+        width, height = map(int, f.readline().split())
+        scale = float(f.readline())
+        data = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
+    channels = 3 if magic == b"PF" else 1
+    data = data.reshape(height, width, channels)[:, :, 0]
+    data = np.flipud(data).astype(np.float64)
+    data[~np.isfinite(data)] = np.nan
+    data[data <= 0] = np.nan
+    return data
+
+
+def find(directory, stem, extensions):
+    for ext in extensions:
+        path = os.path.join(directory, stem + ext)
+        if os.path.isfile(path):
+            return path
+    return None
+
+
+def load_pair(directory):
+    """(left, right, ground truth disparity with NaN unknown) following vision/middlebury.cc."""
+    left, right = find(directory, "im0", [".png"]), find(directory, "im1", [".png"])
+    gt = find(directory, "disp0GT", [".pfm"]) or find(directory, "disp0", [".pfm"])
+    if left and right and gt:
+        return left, right, read_pfm(gt)
+    layouts = [("scene1.row3.col3", "scene1.row3.col4", "truedisp.row3.col3", lambda w: 16.0),
+               ("view1", "view5", "disp1", lambda w: 3.0 if w < 500 else (2.0 if w < 900 else 1.0)),
+               ("im2", "im6", "disp2", None)]
+    for l_stem, r_stem, d_stem, scale in layouts:
+        left = find(directory, l_stem, [".png", ".ppm", ".pgm"])
+        right = find(directory, r_stem, [".png", ".ppm", ".pgm"])
+        disp = find(directory, d_stem, [".pgm", ".png"])
+        if not (left and right and disp):
+            continue
+        raw = np.asarray(Image.open(disp).convert("L"), dtype=np.float64)
+        width = raw.shape[1]
+        if scale is None:  # 2001 (pgm): 8; 2003 (png): 4 below 600 px wide, else 2
+            s = 8.0 if disp.endswith(".pgm") else (4.0 if width < 600 else 2.0)
+        else:
+            s = scale(width)
+        gt = raw / s
+        gt[raw == 0] = np.nan
+        return left, right, gt
+    return None
+
+
+def run_match(binary, left, right, max_disparity, extra):
+    with tempfile.TemporaryDirectory() as tmp:
+        report = os.path.join(tmp, "r.json")
+        cmd = [binary, "match", "--left", left, "--right", right, "--rectified",
+               "--max-disparity", str(max_disparity), "--out", os.path.join(tmp, "m.csv"),
+               "--report", report, "--quiet"] + extra
+        subprocess.run(cmd, check=True)
+        with open(report) as f:
+            return json.load(f)
+
+
+def sigmoid(z):
+    return 1.0 / (1.0 + np.exp(-z))
+
+
+def design(X, cap):
+    X = X.copy()
+    X[:, 0] = np.minimum(X[:, 0], cap)
+    return np.hstack([np.ones((X.shape[0], 1)), X])
+
+
+def fit_logistic(X, y, ridge=1e-3, iterations=50):
+    w = np.zeros(X.shape[1])
+    for _ in range(iterations):
+        p = sigmoid(X @ w)
+        gradient = X.T @ (y - p) - ridge * w
+        hessian = (X * (p * (1 - p))[:, None]).T @ X + ridge * np.eye(X.shape[1])
+        step = np.linalg.solve(hessian, gradient)
+        w += step
+        if np.max(np.abs(step)) < 1e-8:
+            break
+    return w
+
+
+def top_error(confidence, correct, share):
+    order = np.argsort(-confidence, kind="stable")
+    n = max(1, int(round(share * len(order))))
+    return 100.0 * (1.0 - correct[order[:n]].mean())
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--binary", default="build/hnnstereo")
+    parser.add_argument("--dataset", default="../shared/datasets")
+    parser.add_argument("--cap", type=float, default=8.0, help="potential_margin cap")
+    parser.add_argument("--match-args", default="", help="extra arguments for match")
+    args = parser.parse_args()
+    pairs = {}
+    for name in sorted(os.listdir(args.dataset)):
+        directory = os.path.join(args.dataset, name)
+        if not os.path.isdir(directory):
+            continue
+        loaded = load_pair(directory)
+        if loaded is None:
+            continue
+        left, right, gt = loaded
+        max_disparity = int(math.ceil(np.nanmax(gt) / 16.0) * 16)
+        print(f"{name}: matching (max disparity {max_disparity})", file=sys.stderr)
+        report = run_match(args.binary, left, right, max_disparity, args.match_args.split())
+        columns = report["matches"]["columns"]
+        rows = np.array(report["matches"]["rows"], dtype=np.float64).reshape(-1, len(columns))
+        col = {c: i for i, c in enumerate(columns)}
+        xl = np.round(rows[:, col["xl"]]).astype(int)
+        yl = np.round(rows[:, col["yl"]]).astype(int)
+        truth = gt[yl, xl]
+        known = np.isfinite(truth)
+        disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
+        correct = (np.abs(disparity - np.round(truth)) <= 1.0)[known].astype(np.float64)
+        X = rows[known][:, [col[f] for f in FEATURES]]
+        pairs[name] = (X, correct, rows[known][:, col["confidence"]])
+    names = list(pairs)
+    X_all = np.vstack([pairs[n][0] for n in names])
+    y_all = np.concatenate([pairs[n][1] for n in names])
+    w = fit_logistic(design(X_all, args.cap), y_all)
+    print("fitted on all pairs (paste into ConfidenceOptions):")
+    print(f"  bias = {w[0]:.4f}; " + "; ".join(f"w_{f} = {w[i + 1]:.4f}" for i, f in enumerate(FEATURES)))
+    print("\n| pair | matches | error all % | top 25 % | top 50 % | top 75 % | top 25 % (current build) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    pooled = {"c": [], "y": [], "b": []}
+    for held_out in names:
+        train = [n for n in names if n != held_out]
+        w_cv = fit_logistic(design(np.vstack([pairs[n][0] for n in train]), args.cap),
+                            np.concatenate([pairs[n][1] for n in train]))
+        X, y, built = pairs[held_out]
+        c = sigmoid(design(X, args.cap) @ w_cv)
+        pooled["c"].append(c)
+        pooled["y"].append(y)
+        pooled["b"].append(built)
+        print(f"| {held_out} | {len(y)} | {100 * (1 - y.mean()):.1f} | {top_error(c, y, 0.25):.1f} | "
+              f"{top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | {top_error(built, y, 0.25):.1f} |")
+    c, y, b = (np.concatenate(pooled[k]) for k in ("c", "y", "b"))
+    print(f"| pooled (leave-one-pair-out) | {len(y)} | {100 * (1 - y.mean()):.1f} | "
+          f"{top_error(c, y, 0.25):.1f} | {top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | "
+          f"{top_error(b, y, 0.25):.1f} |")
+
+
+if __name__ == "__main__":
+    main()
