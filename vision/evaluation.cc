@@ -54,7 +54,7 @@ MethodMatches FromReport(const std::string& method, const MatchReport& report) {
   for (const StereoMatch& m : report.matches) {
     matches.left.push_back(m.left);
     matches.right.push_back(m.right);
-    matches.confidence.push_back(m.activation);
+    matches.confidence.push_back(m.confidence);  // ranks the HNN's curves (not the activation)
   }
   matches.time_ms = report.timing_ms.total;
   return matches;

@@ -426,15 +426,16 @@ TEST(SweepLookup, TheBestSettingReachingADensityIsTheMostPreciseOfTheDenseEnough
 }
 
 TEST(SweepUniqueness, StereoSgbmAndBmLoseDensityAsTheUniquenessRatioGrows) {
-  // A noisy right view, so that some pixels are ambiguous.
+  // Low contrast and independent noise in both views, so that many pixels are ambiguous.
   SyntheticPair pair = MakePair(6.0, 31, 200, 150);
-  cv::Mat noise(pair.right.size(), CV_16S);
   cv::theRNG().state = 99;
-  cv::randn(noise, 0, 14);
-  cv::Mat noisy;
-  pair.right.convertTo(noisy, CV_16S);
-  noisy += noise;
-  noisy.convertTo(pair.right, CV_8U);
+  for (cv::Mat* view : {&pair.left, &pair.right}) {
+    cv::Mat noise(view->size(), CV_16S), noisy;
+    cv::randn(noise, 0, 6);
+    view->convertTo(noisy, CV_16S, 0.2, 100);
+    noisy += noise;
+    noisy.convertTo(*view, CV_8U);
+  }
   const auto points = GridPoints(pair.left.cols, pair.left.rows, 6, 2);
   const int n = static_cast<int>(points.size());
   const std::vector<int> ratios(std::begin(kUniquenessSweep), std::end(kUniquenessSweep));
