@@ -138,6 +138,7 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
   const double y_min = std::clamp(std::floor((lowest - 0.01) * 20.0) / 20.0, 0.0, 0.95);
   const double y_span = 1.0 - y_min;
   const double y_step = y_span > 0.5 ? 0.1 : y_span > 0.2 ? 0.05 : y_span > 0.1 ? 0.02 : 0.01;
+  const double first_tick = std::ceil(y_min / y_step - 1e-9) * y_step;  // round values, 100 %
   auto to_pixel = [&](double density, double precision) {
     const double x = left + std::clamp(density, 0.0, 1.0) * (right - left);
     const double y = bottom - std::clamp((precision - y_min) / y_span, 0.0, 1.0) * (bottom - top);
@@ -151,7 +152,7 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
          0.5, ink);
   }
   for (int k = 0;; ++k) {
-    const double precision = y_min + k * y_step;
+    const double precision = first_tick + k * y_step;
     if (precision > 1.0 + 1e-9) break;
     cv::line(plot, to_pixel(0.0, precision), to_pixel(1.0, precision), grid, 1);
     char label[16];
@@ -162,8 +163,16 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
     DashedLine(plot, to_pixel(guide, y_min), to_pixel(guide, 1.0), cv::Scalar(150, 150, 150));
   }
   cv::rectangle(plot, to_pixel(0.0, 1.0), to_pixel(1.0, y_min), cv::Scalar(0, 0, 0), 1);
-  Text(plot, pair.name + ": precision vs density, each method ranked by its own confidence",
-       cv::Point(left, 30), 0.65, cv::Scalar(0, 0, 0), 1);
+  {
+    const std::string title = pair.name + ": precision vs density, each method ranked by its own confidence";
+    double scale = 0.65;
+    int baseline = 0;
+    while (scale > 0.4 &&
+           cv::getTextSize(title, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline).width > kRankedWidth - 20 - left / 2) {
+      scale -= 0.05;
+    }
+    Text(plot, title, cv::Point(left / 2, 30), scale, cv::Scalar(0, 0, 0), 1);
+  }
   Text(plot, "density: % of left Canny edge pixels with ground truth that get a kept match",
        cv::Point(left + 150, kRankedHeight - 20), 0.55);
   // Rotated y label.
@@ -203,8 +212,9 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
       for (std::size_t i = 0; i < curve.size(); ++i) {
         const cv::Point p = to_pixel(curve[i].density, curve[i].precision_1px);
         Marker(plot, p, colour, !sgbm);
-        Text(plot, std::to_string(method.sweep[i].uniqueness_ratio), p + cv::Point(7, sgbm ? -7 : 16),
-             0.42, colour);
+        // Labels alternate sides so that neighbouring settings stay readable.
+        const cv::Point offset = (i % 2 == 0) ? cv::Point(8, -8) : cv::Point(-26, 18);
+        Text(plot, std::to_string(method.sweep[i].uniqueness_ratio), p + offset, 0.45, colour);
       }
     } else {
       colour = wta ? cv::Scalar(40, 150, 40) : hnn_colours[hnn_index++ % 4];

@@ -1083,7 +1083,7 @@ std::string RankedMarkdown(const EvaluationReport& report) {
   if (!summary.ranking.empty()) {
     text += "\nRanking check: error % of the top 25 % of a method's matches by confidence against "
             "all of them (the confidence ranks when top / all is well below 1):\n\n"
-            "| pair | method | matches | error all % | error top 25 % | top / all |\n"
+            "| pair | method | matches with truth | error all % | error top 25 % | top / all |\n"
             "|---|---|---:|---:|---:|---:|\n";
     for (const RankedSummary::RankingCheck& c : summary.ranking) {
       text += "| " + PairLabel(c.pair) + " | " + c.method + " | " +
