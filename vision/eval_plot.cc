@@ -195,6 +195,7 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
   std::size_t hnn_index = 0;
   std::vector<std::pair<std::string, cv::Scalar>> legend;
   std::vector<int> legend_kind;  // 0 thick line, 1 line, 2 circles, 3 squares
+  std::vector<cv::Rect> placed_labels;
   for (std::size_t m = 0; m < pair.ranked.size(); ++m) {
     const RankedMethod& method = pair.ranked[m];
     const std::vector<CurvePoint>& curve = curves[m];
@@ -212,9 +213,20 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
       for (std::size_t i = 0; i < curve.size(); ++i) {
         const cv::Point p = to_pixel(curve[i].density, curve[i].precision_1px);
         Marker(plot, p, colour, !sgbm);
-        // Labels alternate sides so that neighbouring settings stay readable.
-        const cv::Point offset = (i % 2 == 0) ? cv::Point(8, -8) : cv::Point(-26, 18);
-        Text(plot, std::to_string(method.sweep[i].uniqueness_ratio), p + offset, 0.45, colour);
+        // A label goes above-right or below-left of its marker, wherever it overlaps no other
+        // label; crowded settings stay unlabelled rather than unreadable.
+        const std::string label = std::to_string(method.sweep[i].uniqueness_ratio);
+        int baseline = 0;
+        const cv::Size size = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &baseline);
+        for (const cv::Point offset : {cv::Point(8, -8), cv::Point(-8 - size.width, 18)}) {
+          const cv::Rect box(p + offset - cv::Point(1, size.height + 1), size + cv::Size(2, 3));
+          const bool free = std::none_of(placed_labels.begin(), placed_labels.end(),
+                                         [&](const cv::Rect& r) { return (r & box).area() > 0; });
+          if (!free) continue;
+          placed_labels.push_back(box);
+          Text(plot, label, p + offset, 0.45, colour);
+          break;
+        }
       }
     } else {
       colour = wta ? cv::Scalar(40, 150, 40) : hnn_colours[hnn_index++ % 4];
