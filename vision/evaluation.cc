@@ -228,7 +228,7 @@ OperatingPoint CutRanked(const std::vector<RankedMatches::Entry>& entries, doubl
   point.n_edges_with_truth = n_edges_with_truth;
   point.n_pairs = 0;
   const double n = static_cast<double>(entries.size());
-  point.reached = count <= n + 1e-9;
+  point.reached = !entries.empty() && count <= n + 1e-9;  // no match at all: nothing reached
   if (!point.reached) return point;
   count = std::min(count, n);
   std::size_t begin = 0;
@@ -747,7 +747,7 @@ RankedSummary SummarizeRanked(const EvaluationReport& report) {
       row.full = m.Full();
       row.full.n_pairs = 1;
       summary.rows.push_back(row);
-      if (!m.swept) {
+      if (!m.swept && !m.ranked.entries.empty()) {
         RankedSummary::RankingCheck check;
         check.pair = pair.name;
         check.method = m.method;

@@ -393,6 +393,11 @@ TEST(RankedMatches, CutsAtADensityAndSaysWhenItIsNotReached) {
   EXPECT_NEAR(curve.back().density, 0.5, 1e-12);
   EXPECT_THROW(RankMatches(MethodMatches{"x", {{1, 1}}, {}, {}, 0.0}, truth.view(), 1),
                std::invalid_argument);
+  // A method without a single match (e.g. a preset that failed) reaches nothing, not 100 % error.
+  const RankedMatches none = RankMatches(MethodMatches{}, truth.view(), 800);
+  EXPECT_FALSE(none.Full().reached);
+  EXPECT_FALSE(none.At(0.25).reached);
+  EXPECT_TRUE(none.Curve().empty());
 }
 
 SweepPoint Setting(int ratio, double density, double precision) {
