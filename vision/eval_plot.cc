@@ -224,6 +224,7 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
                                          [&](const cv::Rect& r) { return (r & box).area() > 0; });
           if (!free) continue;
           placed_labels.push_back(box);
+          Text(plot, label, p + offset, 0.45, cv::Scalar(255, 255, 255), 4);  // a halo over lines
           Text(plot, label, p + offset, 0.45, colour);
           break;
         }
