@@ -12,4 +12,11 @@ namespace hnnstereo::vision {
 /// matches first), single-point methods as dots; a legend in the first panel. CV_8UC3.
 cv::Mat DrawPrecisionDensityPlot(const EvaluationReport& report);
 
+/// One pair's ranked comparison (PairEvaluation::ranked), 1000x680: precision within 1 px (y,
+/// range fitted to the data) against density (x, 0-100 % of Canny edge pixels with ground truth);
+/// ranked methods as lines (HNN presets thick), swept methods as markers joined in sweep order
+/// and labelled with their uniqueness ratio; dashed guides at 25 / 50 / 75 %; a legend.
+/// Empty when the pair has no ranked methods. CV_8UC3.
+cv::Mat DrawRankedPlot(const PairEvaluation& pair);
+
 }  // namespace hnnstereo::vision

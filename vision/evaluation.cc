@@ -54,7 +54,7 @@ MethodMatches FromReport(const std::string& method, const MatchReport& report) {
   for (const StereoMatch& m : report.matches) {
     matches.left.push_back(m.left);
     matches.right.push_back(m.right);
-    matches.confidence.push_back(m.activation);
+    matches.confidence.push_back(m.confidence);  // ranks the HNN's curves (not the activation)
   }
   matches.time_ms = report.timing_ms.total;
   return matches;
@@ -208,6 +208,168 @@ std::vector<CurvePoint> PrecisionDensityCurve(const MethodMatches& matches, cons
   return curve;
 }
 
+// ---- Ranked by confidence ---------------------------------------------------------------
+
+void OperatingPoint::Add(const OperatingPoint& other) {
+  kept += other.kept;
+  nonoccluded += other.nonoccluded;
+  correct += other.correct;
+  n_edges_with_truth += other.n_edges_with_truth;
+  n_pairs += std::max(1, other.n_pairs);
+}
+
+namespace {
+
+// The first `count` entries (fractional): a group of equal confidence that the cut splits
+// counts with the share kept.
+OperatingPoint CutRanked(const std::vector<RankedMatches::Entry>& entries, double count,
+                         int n_edges_with_truth) {
+  OperatingPoint point;
+  point.n_edges_with_truth = n_edges_with_truth;
+  point.n_pairs = 0;
+  const double n = static_cast<double>(entries.size());
+  point.reached = !entries.empty() && count <= n + 1e-9;  // no match at all: nothing reached
+  if (!point.reached) return point;
+  count = std::min(count, n);
+  std::size_t begin = 0;
+  while (begin < entries.size() && point.kept < count - 1e-12) {
+    std::size_t end = begin + 1;
+    while (end < entries.size() && entries[end].confidence == entries[begin].confidence) ++end;
+    double nonoccluded = 0.0, correct = 0.0;
+    for (std::size_t i = begin; i < end; ++i) {
+      nonoccluded += entries[i].nonoccluded ? 1.0 : 0.0;
+      correct += entries[i].correct ? 1.0 : 0.0;
+    }
+    const double size = static_cast<double>(end - begin);
+    const double share = std::min(1.0, (count - point.kept) / size);
+    point.kept += share * size;
+    point.nonoccluded += share * nonoccluded;
+    point.correct += share * correct;
+    begin = end;
+  }
+  return point;
+}
+
+}  // namespace
+
+OperatingPoint RankedMatches::At(double density) const {
+  return CutRanked(entries, density * n_edges_with_truth, n_edges_with_truth);
+}
+
+OperatingPoint RankedMatches::TopShare(double share) const {
+  return CutRanked(entries, share * static_cast<double>(entries.size()), n_edges_with_truth);
+}
+
+OperatingPoint RankedMatches::Full() const {
+  return CutRanked(entries, static_cast<double>(entries.size()), n_edges_with_truth);
+}
+
+std::vector<CurvePoint> RankedMatches::Curve(int steps) const {
+  std::vector<CurvePoint> curve;
+  if (entries.empty() || n_edges_with_truth <= 0 || steps <= 0) return curve;
+  const double n = static_cast<double>(entries.size());
+  for (int s = 1; s <= steps; ++s) {
+    const OperatingPoint point = CutRanked(entries, n * s / steps, n_edges_with_truth);
+    if (point.nonoccluded > 0.0) curve.push_back({point.density(), point.precision()});
+  }
+  return curve;
+}
+
+RankedMatches RankMatches(const MethodMatches& matches, const TruthView& truth,
+                          int n_edges_with_truth) {
+  if (truth.disparity == nullptr || truth.nonoccluded == nullptr) {
+    throw std::invalid_argument("RankMatches: the truth view has no disparity or mask");
+  }
+  if (matches.left.size() != matches.right.size()) {
+    throw std::invalid_argument("RankMatches: " + std::to_string(matches.left.size()) +
+                                " left and " + std::to_string(matches.right.size()) + " right points");
+  }
+  const bool has_confidence = matches.confidence.size() == matches.left.size();
+  const Eigen::Matrix3d rectified_from_right = truth.right_from_rectified.inverse();
+  RankedMatches ranked;
+  ranked.n_edges_with_truth = n_edges_with_truth;
+  for (std::size_t i = 0; i < matches.left.size(); ++i) {
+    const auto known = TruthAt(truth, matches.left[i]);
+    if (!known) continue;
+    const double error = MatchError(rectified_from_right, matches.left[i], matches.right[i],
+                                    known->first);
+    if (!std::isfinite(error)) continue;  // no output: not kept
+    float confidence = has_confidence ? matches.confidence[i] : 0.0f;
+    if (std::isnan(confidence)) confidence = -std::numeric_limits<float>::infinity();
+    ranked.entries.push_back({confidence, known->second, known->second && error <= 1.0});
+  }
+  std::stable_sort(ranked.entries.begin(), ranked.entries.end(),
+                   [](const RankedMatches::Entry& a, const RankedMatches::Entry& b) {
+                     return a.confidence > b.confidence;
+                   });
+  return ranked;
+}
+
+OperatingPoint BestSettingReaching(const std::vector<SweepPoint>& sweep, double density) {
+  const SweepPoint* best = nullptr;
+  for (const SweepPoint& s : sweep) {
+    if (s.point.density() < density - 1e-12) continue;
+    if (best == nullptr || s.point.precision() > best->point.precision() ||
+        (s.point.precision() == best->point.precision() &&
+         s.point.density() > best->point.density())) {
+      best = &s;
+    }
+  }
+  OperatingPoint point;
+  if (best == nullptr) {
+    if (!sweep.empty()) point.n_edges_with_truth = sweep.front().point.n_edges_with_truth;
+    return point;
+  }
+  point = best->point;
+  point.reached = true;
+  point.setting = "uniqueness " + std::to_string(best->uniqueness_ratio);
+  return point;
+}
+
+OperatingPoint DensestSetting(const std::vector<SweepPoint>& sweep) {
+  const SweepPoint* densest = nullptr;
+  for (const SweepPoint& s : sweep) {
+    if (densest == nullptr || s.point.kept > densest->point.kept) densest = &s;
+  }
+  if (densest == nullptr) return {};
+  OperatingPoint point = densest->point;
+  point.reached = true;
+  point.setting = "uniqueness " + std::to_string(densest->uniqueness_ratio);
+  return point;
+}
+
+std::vector<SweepPoint> SweepUniqueness(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                        const std::vector<Eigen::Vector2f>& edges, bool semi_global,
+                                        int min_disparity, int num_disparities,
+                                        const TruthView& truth, int n_edges_with_truth,
+                                        const std::vector<int>& uniqueness_ratios) {
+  // OpenCV does not expose SGBM's cost volume, so each setting reruns the whole matcher.
+  std::vector<SweepPoint> sweep;
+  for (const int ratio : uniqueness_ratios) {
+    const MethodMatches matches = OpenCvBlockMatching(left_grey, right_grey, edges, semi_global,
+                                                      min_disparity, num_disparities, ratio);
+    SweepPoint point;
+    point.uniqueness_ratio = ratio;
+    point.point = RankMatches(matches, truth, n_edges_with_truth).Full();
+    point.point.setting = "uniqueness " + std::to_string(ratio);
+    sweep.push_back(point);
+  }
+  return sweep;
+}
+
+OperatingPoint RankedMethod::At(double density) const {
+  return swept ? BestSettingReaching(sweep, density) : ranked.At(density);
+}
+
+OperatingPoint RankedMethod::Full() const { return swept ? DensestSetting(sweep) : ranked.Full(); }
+
+std::vector<CurvePoint> RankedMethod::Curve() const {
+  if (!swept) return ranked.Curve();
+  std::vector<CurvePoint> points;
+  for (const SweepPoint& s : sweep) points.push_back({s.point.density(), s.point.precision()});
+  return points;
+}
+
 // Winner-take-all ZNCC over the right pixels `search(left, visit)` visits for each left pixel
 // (the thesis's local search); a left pixel with no candidate gets a NaN partner.
 template <typename Search>
@@ -218,17 +380,26 @@ MethodMatches WinnerTakeAllOver(const cv::Mat& left_grey, const cv::Mat& right_g
   MethodMatches result;
   result.method = "wta-zncc";
   const ZnccMatcher zncc(left_grey, right_grey, window);
+  std::vector<float> scores;
   for (const Eigen::Vector2f& point : left_points) {
     const Eigen::Vector2f left(std::round(point.x()), std::round(point.y()));
     float best = -std::numeric_limits<float>::infinity();
+    std::size_t best_step = 0;
     Eigen::Vector2f best_right(kNaN, kNaN);
+    scores.clear();
     search(left, [&](const Eigen::Vector2f& right) {
       const float score = zncc(left, right);
-      if (score > best) best = score, best_right = right;
+      if (score > best) best = score, best_right = right, best_step = scores.size();
+      scores.push_back(score);
     });
+    // Margin: the winner over the best score more than one search step (1 px) away from it.
+    float runner_up = -1.0f;
+    for (std::size_t s = 0; s < scores.size(); ++s) {
+      if (s + 1 < best_step || s > best_step + 1) runner_up = std::max(runner_up, scores[s]);
+    }
     result.left.push_back(point);
     result.right.push_back(best_right);
-    result.confidence.push_back(std::isfinite(best) ? best : -2.0f);
+    result.confidence.push_back(std::isfinite(best) ? best - runner_up : -2.0f);
   }
   result.time_ms = MillisecondsSince(start);
   return result;
@@ -279,7 +450,7 @@ MethodMatches WinnerTakeAllZnccAlongRay(const cv::Mat& left_grey, const cv::Mat&
 
 MethodMatches OpenCvBlockMatching(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                   const std::vector<Eigen::Vector2f>& left_points, bool semi_global,
-                                  int min_disparity, int num_disparities) {
+                                  int min_disparity, int num_disparities, int uniqueness_ratio) {
   const auto start = Clock::now();
   num_disparities = std::max(16, 16 * ((num_disparities + 15) / 16));
   cv::Mat disparity_fixed;  // CV_16S, 16 x disparity; below min_disparity * 16 = invalid
@@ -288,12 +459,14 @@ MethodMatches OpenCvBlockMatching(const cv::Mat& left_grey, const cv::Mat& right
     // OpenCV's recommended smoothness penalties for a 5x5 block on one channel; full 8 paths.
     const int block = 5;
     auto sgbm = cv::StereoSGBM::create(min_disparity, num_disparities, block, 8 * block * block,
-                                       32 * block * block, 1, 63, 10, 100, 2,
+                                       32 * block * block, 1, 63, uniqueness_ratio, 100, 2,
                                        cv::StereoSGBM::MODE_HH);
     sgbm->compute(left_grey, right_grey, disparity_fixed);
   } else {
     auto bm = cv::StereoBM::create(num_disparities, 15);
     bm->setMinDisparity(min_disparity);
+    bm->setDisp12MaxDiff(1);
+    bm->setUniquenessRatio(uniqueness_ratio);
     bm->compute(left_grey, right_grey, disparity_fixed);
   }
   MethodMatches result;
@@ -361,6 +534,16 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
   const int n_edges = evaluation.n_edges_with_truth;
   const int d_min = static_cast<int>(pair.min_disparity);
   const int d_max = static_cast<int>(pair.max_disparity);
+  if (pair.occlusion_source == "left-right check") {
+    evaluation.notices.push_back(
+        "no occlusion mask: occluded pixels are those failing a 1 px left-right check of the left "
+        "and right ground-truth maps");
+  } else if (pair.occlusion_source != "mask") {
+    evaluation.notices.push_back(
+        "no occlusion mask and no right-view ground truth: every pixel with ground truth counts "
+        "as non-occluded, so occluded matches are scored as visible ones (figures differ from the "
+        "same pair read with its right-view ground truth)");
+  }
 
   std::vector<Eigen::Vector2f> default_pixels;
   // Presets that differ only in their refinements share one network run.
@@ -392,6 +575,11 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
     }
     if (p == 0) default_pixels = matches.left;
     evaluation.scores.push_back(ScoreAndCurve(matches, truth, n_edges, &evaluation));
+    RankedMethod ranked;
+    ranked.method = preset.name;
+    ranked.ranked = RankMatches(matches, truth, n_edges);
+    ranked.time_ms = matches.time_ms;
+    evaluation.ranked.push_back(std::move(ranked));
   }
 
   if (options.baselines) {
@@ -411,6 +599,24 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
                                                 options.wta_zncc_window, d_min, d_max);
     all_edges.method = "wta-zncc (all edges)";
     evaluation.curves.emplace_back(all_edges.method, PrecisionDensityCurve(all_edges, truth, n_edges));
+
+    // Ranked by each method's own confidence over all edge pixels.
+    RankedMethod wta;
+    wta.method = "wta-zncc (margin)";
+    wta.ranked = RankMatches(all_edges, truth, n_edges);
+    wta.time_ms = all_edges.time_ms;
+    evaluation.ranked.push_back(std::move(wta));
+    const std::vector<int> ratios(std::begin(kUniquenessSweep), std::end(kUniquenessSweep));
+    for (const bool semi_global : {true, false}) {
+      RankedMethod sweep;
+      sweep.method = semi_global ? "opencv-sgbm (sweep)" : "opencv-bm (sweep)";
+      sweep.swept = true;
+      const auto sweep_start = Clock::now();
+      sweep.sweep = SweepUniqueness(pair.left_grey, pair.right_grey, edges.points, semi_global,
+                                    d_min, d_max - d_min, truth, n_edges, ratios);
+      sweep.time_ms = MillisecondsSince(sweep_start);
+      evaluation.ranked.push_back(std::move(sweep));
+    }
   }
 
   if (options.warped) {
@@ -492,6 +698,242 @@ EvaluationReport Evaluate(const std::vector<MiddleburyPair>& pairs, const Evalua
   return report;
 }
 
+// ---- Ranked summary ---------------------------------------------------------------------
+
+double RankedSummary::Ratio::ratio(int i) const {
+  if (!hnn[i].reached || !sgbm[i].reached || !(sgbm[i].error() > 0.0)) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return hnn[i].error() / sgbm[i].error();
+}
+
+namespace {
+
+constexpr const char* kSgbmSweep = "opencv-sgbm (sweep)";
+
+const RankedMethod* FindRanked(const PairEvaluation& pair, const std::string& method) {
+  for (const RankedMethod& m : pair.ranked) {
+    if (m.method == method) return &m;
+  }
+  return nullptr;
+}
+
+// Pools `point` into `pooled` when reached; the pooled point is reached once any pair is.
+void Pool(OperatingPoint* pooled, const OperatingPoint& point) {
+  if (!point.reached) return;
+  pooled->Add(point);
+  pooled->reached = true;
+  if (pooled->n_pairs > 1 && pooled->setting != point.setting) {
+    pooled->setting = "per pair";
+  } else {
+    pooled->setting = point.setting;
+  }
+}
+
+}  // namespace
+
+RankedSummary SummarizeRanked(const EvaluationReport& report) {
+  RankedSummary summary;
+  std::vector<std::string> methods;
+  for (const PairEvaluation& pair : report.pairs) {
+    for (const RankedMethod& m : pair.ranked) {
+      if (std::find(methods.begin(), methods.end(), m.method) == methods.end()) {
+        methods.push_back(m.method);
+      }
+      RankedSummary::Row row;
+      row.pair = pair.name;
+      row.method = m.method;
+      for (int i = 0; i < 3; ++i) row.at[i] = m.At(kTableDensities[i]);
+      row.full = m.Full();
+      row.full.n_pairs = 1;
+      summary.rows.push_back(row);
+      if (!m.swept && !m.ranked.entries.empty()) {
+        RankedSummary::RankingCheck check;
+        check.pair = pair.name;
+        check.method = m.method;
+        check.top = m.ranked.TopShare(0.25);
+        check.all = m.ranked.Full();
+        summary.ranking.push_back(check);
+      }
+    }
+    // The HNN under test (first preset) against StereoSGBM's best setting at the same density.
+    const RankedMethod* sgbm = FindRanked(pair, kSgbmSweep);
+    if (!pair.ranked.empty() && sgbm != nullptr) {
+      const RankedMethod& hnn = pair.ranked.front();
+      RankedSummary::Ratio ratio;
+      ratio.pair = pair.name;
+      for (int i = 0; i < 3; ++i) {
+        ratio.hnn[i] = hnn.At(kTableDensities[i]);
+        ratio.sgbm[i] = sgbm->At(kTableDensities[i]);
+      }
+      ratio.hnn[3] = hnn.Full();
+      ratio.sgbm[3] = sgbm->At(ratio.hnn[3].density());
+      summary.ratios.push_back(ratio);
+    }
+    // At the first preset's own pixels: StereoSGBM at uniqueness 10 (invalid counts wrong).
+    const auto sgbm_score = std::find_if(pair.scores.begin(), pair.scores.end(),
+                                         [](const MethodScore& s) { return s.method == "opencv-sgbm"; });
+    if (!pair.scores.empty() && sgbm_score != pair.scores.end()) {
+      summary.same_pixels.push_back({pair.name, pair.scores.front().density(),
+                                     1.0 - pair.scores.front().precision_1px(),
+                                     1.0 - sgbm_score->precision_1px(),
+                                     pair.scores.front().n_nonoccluded});
+    }
+  }
+  const std::size_t n_pair_rows = summary.rows.size();
+  for (const std::string& method : methods) {
+    RankedSummary::Row overall;
+    overall.pair = "overall";
+    overall.method = method;
+    for (std::size_t r = 0; r < n_pair_rows; ++r) {
+      const RankedSummary::Row& row = summary.rows[r];
+      if (row.method != method) continue;
+      for (int i = 0; i < 3; ++i) Pool(&overall.at[i], row.at[i]);
+      Pool(&overall.full, row.full);
+    }
+    summary.rows.push_back(overall);
+    RankedSummary::RankingCheck check;
+    check.pair = "overall";
+    check.method = method;
+    bool any = false;
+    for (const RankedSummary::RankingCheck& c : summary.ranking) {
+      if (c.method != method || c.pair == "overall") continue;
+      Pool(&check.top, c.top);
+      Pool(&check.all, c.all);
+      any = true;
+    }
+    if (any) summary.ranking.push_back(check);
+  }
+  if (!summary.ratios.empty()) {
+    // Pooled over the pairs where both reach the density.
+    RankedSummary::Ratio overall;
+    overall.pair = "overall";
+    for (const RankedSummary::Ratio& r : summary.ratios) {
+      for (int i = 0; i < 4; ++i) {
+        if (!r.hnn[i].reached || !r.sgbm[i].reached) continue;
+        Pool(&overall.hnn[i], r.hnn[i]);
+        Pool(&overall.sgbm[i], r.sgbm[i]);
+      }
+    }
+    summary.ratios.push_back(overall);
+  }
+  if (!summary.same_pixels.empty()) {
+    const auto sgbm_score = std::find_if(report.overall.begin(), report.overall.end(),
+                                         [](const MethodScore& s) { return s.method == "opencv-sgbm"; });
+    if (!report.overall.empty() && sgbm_score != report.overall.end()) {
+      summary.same_pixels.push_back({"overall", report.overall.front().density(),
+                                     1.0 - report.overall.front().precision_1px(),
+                                     1.0 - sgbm_score->precision_1px(),
+                                     report.overall.front().n_nonoccluded});
+    }
+  }
+  return summary;
+}
+
+namespace {
+
+nlohmann::json PointJson(const OperatingPoint& p) {
+  if (!p.reached) return nullptr;  // n/a: not reached
+  nlohmann::json json{{"density", p.density()},   {"precision_1px", p.precision()},
+                      {"error_1px", p.error()},   {"kept", p.kept},
+                      {"nonoccluded", p.nonoccluded}, {"correct_1px", p.correct},
+                      {"n_edges_with_truth", p.n_edges_with_truth}};
+  if (!p.setting.empty()) json["setting"] = p.setting;
+  if (p.n_pairs > 0) json["n_pairs"] = p.n_pairs;
+  return json;
+}
+
+std::string DensityKey(double density) {
+  char text[16];
+  std::snprintf(text, sizeof text, "%.2f", density);
+  return text;
+}
+
+nlohmann::json RankedJson(const EvaluationReport& report) {
+  const RankedSummary summary = SummarizeRanked(report);
+  nlohmann::json json;
+  json["definitions"] = {
+      {"density", "kept matches at left Canny edge pixels with ground truth / those edge pixels; "
+                  "an invalid output (no disparity) is not kept"},
+      {"precision_1px", "kept non-occluded matches within 1 px of the true right point / kept "
+                        "non-occluded matches; error_1px = 1 - precision_1px"},
+      {"ranked", "a ranked method keeps its most confident matches down to the density (matches "
+                 "of equal confidence that the cut splits count with the share kept); HNN presets "
+                 "by StereoMatch::confidence, wta-zncc (margin) over all edge pixels by best ZNCC "
+                 "minus the best ZNCC more than 1 px from the winner"},
+      {"swept", "opencv-sgbm (5x5, MODE_HH 8 paths, P1 8*25, P2 32*25, disp12MaxDiff 1, speckle "
+                "100/2) and opencv-bm (15x15, disp12MaxDiff 1) at each uniqueness ratio; at density "
+                "D: the setting with the highest precision among those whose density >= D, that "
+                "setting's full point (not cut down to D); full: the densest setting"},
+      {"overall", "counts summed over the pairs that reach the density (n_pairs), i.e. "
+                  "edge-weighted; swept methods take each pair's best setting"},
+      {"hnn_vs_sgbm", "error of the first preset / error of opencv-sgbm's best setting reaching "
+                      "the same density (25/50/75 % and the preset's full density); overall pools "
+                      "the pairs where both reach it"},
+      {"ranking_check", "error of the top 25 % of a ranked method's kept matches (at pixels with "
+                        "ground truth) by confidence / error of all of them"},
+      {"same_pixels", "at the first preset's matched pixels: its error vs opencv-sgbm at "
+                      "uniqueness 10 with the left-right check, an invalid output counted wrong"}};
+  nlohmann::json rows = nlohmann::json::array();
+  for (const RankedSummary::Row& row : summary.rows) {
+    nlohmann::json at = nlohmann::json::object();
+    for (int i = 0; i < 3; ++i) at[DensityKey(kTableDensities[i])] = PointJson(row.at[i]);
+    rows.push_back({{"pair", row.pair}, {"method", row.method}, {"at", at}, {"full", PointJson(row.full)}});
+  }
+  json["table"] = rows;
+  nlohmann::json ratios = nlohmann::json::array();
+  auto number = [](double value) -> nlohmann::json {
+    return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
+  };
+  for (const RankedSummary::Ratio& r : summary.ratios) {
+    nlohmann::json entry{{"pair", r.pair}};
+    for (int i = 0; i < 4; ++i) {
+      const std::string key = i < 3 ? DensityKey(kTableDensities[i]) : "hnn_full";
+      entry[key] = {{"hnn", PointJson(r.hnn[i])}, {"sgbm", PointJson(r.sgbm[i])},
+                    {"ratio", number(r.ratio(i))}};
+    }
+    ratios.push_back(entry);
+  }
+  json["hnn_vs_sgbm"] = ratios;
+  nlohmann::json checks = nlohmann::json::array();
+  for (const RankedSummary::RankingCheck& c : summary.ranking) {
+    checks.push_back({{"pair", c.pair}, {"method", c.method}, {"top_25", PointJson(c.top)},
+                      {"all", PointJson(c.all)}, {"ratio", c.ratio()}});
+  }
+  json["ranking_check"] = checks;
+  nlohmann::json same = nlohmann::json::array();
+  for (const RankedSummary::SamePixels& s : summary.same_pixels) {
+    same.push_back({{"pair", s.pair}, {"density", s.density}, {"hnn_error_1px", s.hnn_error},
+                    {"sgbm_error_1px", s.sgbm_error}, {"n_nonoccluded", s.n}, {"ratio", s.ratio()}});
+  }
+  json["same_pixels"] = same;
+  return json;
+}
+
+nlohmann::json PairRankedJson(const PairEvaluation& pair) {
+  nlohmann::json methods = nlohmann::json::array();
+  for (const RankedMethod& m : pair.ranked) {
+    nlohmann::json entry{{"method", m.method}, {"swept", m.swept}, {"time_ms", m.time_ms},
+                         {"full", PointJson(m.Full())}};
+    nlohmann::json curve = nlohmann::json::array();
+    for (const CurvePoint& c : m.Curve()) curve.push_back({c.density, c.precision_1px});
+    entry["curve"] = curve;
+    if (m.swept) {
+      nlohmann::json sweep = nlohmann::json::array();
+      for (const SweepPoint& s : m.sweep) {
+        nlohmann::json point = PointJson(s.point);
+        point["uniqueness_ratio"] = s.uniqueness_ratio;
+        sweep.push_back(point);
+      }
+      entry["sweep"] = sweep;
+    }
+    methods.push_back(entry);
+  }
+  return methods;
+}
+
+}  // namespace
+
 nlohmann::json EvaluationJson(const EvaluationReport& report) {
   auto score_json = [](const MethodScore& s) {
     return nlohmann::json{{"method", s.method},
@@ -530,6 +972,7 @@ nlohmann::json EvaluationJson(const EvaluationReport& report) {
                      {"notices", pair.notices}};
     p["methods"] = nlohmann::json::array();
     for (const MethodScore& s : pair.scores) p["methods"].push_back(score_json(s));
+    if (!pair.ranked.empty()) p["ranked"] = PairRankedJson(pair);
     p["curves"] = nlohmann::json::object();
     for (const auto& [method, curve] : pair.curves) {
       nlohmann::json points = nlohmann::json::array();
@@ -540,6 +983,9 @@ nlohmann::json EvaluationJson(const EvaluationReport& report) {
   }
   json["overall"] = nlohmann::json::array();
   for (const MethodScore& s : report.overall) json["overall"].push_back(score_json(s));
+  const bool ranked = std::any_of(report.pairs.begin(), report.pairs.end(),
+                                  [](const PairEvaluation& p) { return !p.ranked.empty(); });
+  if (ranked) json["ranked"] = RankedJson(report);
   json["time_ms"] = report.time_ms;
   return json;
 }
@@ -560,6 +1006,103 @@ std::string EvaluationMarkdown(const EvaluationReport& report) {
     for (const MethodScore& s : pair.scores) row(pair.name, s);
   }
   for (const MethodScore& s : report.overall) row("**overall**", s);
+  const bool ranked = std::any_of(report.pairs.begin(), report.pairs.end(),
+                                  [](const PairEvaluation& p) { return !p.ranked.empty(); });
+  if (ranked) text += "\n" + RankedMarkdown(report);
+  return text;
+}
+
+namespace {
+
+std::string Fixed(double value, int digits) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
+}
+
+std::string PairLabel(const std::string& pair) { return pair == "overall" ? "**overall**" : pair; }
+
+// "4.2", "4.2 (u 30)" for a swept method, "4.2 (4/5 pairs)" for a pooled point short of pairs,
+// "n/a" when not reached.
+std::string ErrorCell(const OperatingPoint& p, int n_pairs_total) {
+  if (!p.reached) return "n/a";
+  std::string cell = Percent(p.error());
+  std::string note;
+  if (p.setting.rfind("uniqueness ", 0) == 0) note = "u " + p.setting.substr(11);
+  if (p.setting == "per pair") note = "u per pair";
+  if (n_pairs_total > 0 && p.n_pairs > 0 && p.n_pairs < n_pairs_total) {
+    note += std::string(note.empty() ? "" : ", ") + std::to_string(p.n_pairs) + "/" +
+            std::to_string(n_pairs_total) + " pairs";
+  }
+  return note.empty() ? cell : cell + " (" + note + ")";
+}
+
+std::string RatioCell(const RankedSummary::Ratio& r, int i, int n_pairs_total) {
+  const double ratio = r.ratio(i);
+  if (!std::isfinite(ratio)) return "n/a";
+  std::string cell = Fixed(ratio, 2);
+  if (n_pairs_total > 0 && r.hnn[i].n_pairs > 0 && r.hnn[i].n_pairs < n_pairs_total) {
+    cell += " (" + std::to_string(r.hnn[i].n_pairs) + "/" + std::to_string(n_pairs_total) + " pairs)";
+  }
+  return cell;
+}
+
+}  // namespace
+
+std::string RankedMarkdown(const EvaluationReport& report) {
+  const RankedSummary summary = SummarizeRanked(report);
+  const int n_pairs = static_cast<int>(report.pairs.size());
+  std::string text =
+      "Ranked by confidence: error rate % (kept non-occluded matches more than 1 px off) when each "
+      "method keeps its most confident matches down to a density (share of left Canny edge pixels "
+      "with ground truth). Swept methods: the best uniqueness setting reaching that density "
+      "(u = its ratio). n/a = the method does not reach it.\n\n"
+      "| pair | method | 25 % | 50 % | 75 % | full: density % | full: error % |\n"
+      "|---|---|---:|---:|---:|---:|---:|\n";
+  for (const RankedSummary::Row& row : summary.rows) {
+    const int total = row.pair == "overall" ? n_pairs : 0;
+    text += "| " + PairLabel(row.pair) + " | " + row.method + " | " + ErrorCell(row.at[0], total) +
+            " | " + ErrorCell(row.at[1], total) + " | " + ErrorCell(row.at[2], total) + " | " +
+            (row.full.reached ? Percent(row.full.density()) : "n/a") + " | " +
+            ErrorCell(row.full, total) + " |\n";
+  }
+  if (!summary.ratios.empty()) {
+    const std::string hnn = report.pairs.front().ranked.front().method;
+    text += "\nError of " + hnn +
+            " / error of opencv-sgbm's best uniqueness setting reaching the same density "
+            "(below 1: the HNN is better):\n\n"
+            "| pair | 25 % | 50 % | 75 % | at the HNN's full density | HNN full density % |\n"
+            "|---|---:|---:|---:|---:|---:|\n";
+    for (const RankedSummary::Ratio& r : summary.ratios) {
+      const int total = r.pair == "overall" ? n_pairs : 0;
+      text += "| " + PairLabel(r.pair) + " | " + RatioCell(r, 0, total) + " | " + RatioCell(r, 1, total) +
+              " | " + RatioCell(r, 2, total) + " | " + RatioCell(r, 3, total) + " | " +
+              (r.hnn[3].reached ? Percent(r.hnn[3].density()) : "n/a") + " |\n";
+    }
+  }
+  if (!summary.ranking.empty()) {
+    text += "\nRanking check: error % of the top 25 % of a method's matches by confidence against "
+            "all of them (the confidence ranks when top / all is well below 1):\n\n"
+            "| pair | method | matches with truth | error all % | error top 25 % | top / all |\n"
+            "|---|---|---:|---:|---:|---:|\n";
+    for (const RankedSummary::RankingCheck& c : summary.ranking) {
+      text += "| " + PairLabel(c.pair) + " | " + c.method + " | " +
+              std::to_string(static_cast<long long>(std::llround(c.all.kept))) + " | " +
+              Percent(c.all.error()) + " | " + Percent(c.top.error()) + " | " +
+              Fixed(c.ratio(), 2) + " |\n";
+    }
+  }
+  if (!summary.same_pixels.empty()) {
+    const std::string hnn = report.pairs.front().scores.front().method;
+    text += "\nAt " + hnn + "'s own pixels (its full density): its error % against opencv-sgbm "
+            "(uniqueness 10, left-right check) at the same pixels, invalid output counted wrong:\n\n"
+            "| pair | density % | HNN error % | SGBM error % | HNN / SGBM |\n"
+            "|---|---:|---:|---:|---:|\n";
+    for (const RankedSummary::SamePixels& s : summary.same_pixels) {
+      text += "| " + PairLabel(s.pair) + " | " + Percent(s.density) + " | " + Percent(s.hnn_error) +
+              " | " + Percent(s.sgbm_error) + " | " + Fixed(s.ratio(), 2) + " |\n";
+    }
+  }
   return text;
 }
 

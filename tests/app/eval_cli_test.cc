@@ -55,6 +55,38 @@ TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
   std::string header;
   std::getline(markdown, header);
   EXPECT_NE(header.find("precision 1 px"), std::string::npos);
+  std::stringstream rest;
+  rest << markdown.rdbuf();
+  EXPECT_NE(rest.str().find("| pair | method | 25 % | 50 % | 75 % | full: density % | full: error % |"),
+            std::string::npos) << rest.str();
+  EXPECT_NE(rest.str().find("| middlebury2003_teddy | opencv-sgbm (sweep) |"), std::string::npos);
+  EXPECT_NE(rest.str().find("Ranking check"), std::string::npos);
+
+  // Ranked by confidence: every method over all edge pixels, in the JSON and one plot per pair.
+  ASSERT_TRUE(json.contains("ranked"));
+  std::vector<std::string> ranked;
+  for (const auto& method : pair["ranked"]) ranked.push_back(method["method"]);
+  EXPECT_EQ(ranked, (std::vector<std::string>{"hnn-default", "hnn-thesis", "wta-zncc (margin)",
+                                               "opencv-sgbm (sweep)", "opencv-bm (sweep)"}));
+  const nlohmann::json& sgbm = pair["ranked"][3];
+  ASSERT_EQ(sgbm["sweep"].size(), 10u);
+  EXPECT_EQ(sgbm["sweep"][0]["uniqueness_ratio"], 0);
+  EXPECT_GE(sgbm["sweep"][0]["density"].get<double>(), sgbm["sweep"][9]["density"].get<double>());
+  EXPECT_GT(pair["ranked"][2]["full"]["density"].get<double>(), 0.9) << "WTA answers everywhere";
+  bool has_overall_hnn = false;
+  for (const auto& row : json["ranked"]["table"]) {
+    has_overall_hnn |= row["pair"] == "overall" && row["method"] == "hnn-default";
+  }
+  EXPECT_TRUE(has_overall_hnn);
+  EXPECT_EQ(json["ranked"]["hnn_vs_sgbm"].size(), 2u);  // the pair and overall
+  const cv::Mat ranked_plot = cv::imread(Path("eval.middlebury2003_teddy.png"));
+  ASSERT_FALSE(ranked_plot.empty());
+  EXPECT_GE(ranked_plot.cols, 800);
+  // The vendored Teddy ships its right-view ground truth: occlusions from the left-right check,
+  // as for the shared copy, and eval says so.
+  EXPECT_EQ(pair["occlusion_source"], "left-right check");
+  EXPECT_NE(result.output.find("no occlusion mask: occluded pixels are those failing"),
+            std::string::npos) << result.output;
 }
 
 TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {

@@ -5,6 +5,8 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <filesystem>
+#include <functional>
 #include <limits>
 #include <random>
 
@@ -291,14 +293,282 @@ TEST(EvaluatePair, SyntheticPairEndToEndOnTheCpuEngine) {
   EXPECT_GT(warped.n_matches, 100);
   EXPECT_GT(warped.precision_1px(), 0.8);
 
+  // Ranked by confidence over all edge pixels: the presets, WTA by its margin, the two sweeps.
+  ASSERT_EQ(evaluation.ranked.size(), 2u + 3u);
+  EXPECT_EQ(evaluation.ranked[0].method, "hnn-default");
+  EXPECT_EQ(evaluation.ranked[2].method, "wta-zncc (margin)");
+  EXPECT_EQ(evaluation.ranked[3].method, "opencv-sgbm (sweep)");
+  EXPECT_EQ(evaluation.ranked[4].method, "opencv-bm (sweep)");
+  EXPECT_EQ(evaluation.ranked[3].sweep.size(), std::size(kUniquenessSweep));
+  EXPECT_NEAR(evaluation.ranked[0].Full().kept, hnn.n_with_truth, 1e-9);
+  EXPECT_GT(evaluation.ranked[2].Full().density(), 0.9) << "WTA answers at every edge pixel";
+  // The synthetic pair has no occlusion mask: the evaluation says so.
+  EXPECT_NE(::testing::PrintToString(evaluation.notices).find("no occlusion mask"), std::string::npos);
+
   EvaluationReport report;
   report.pairs = {evaluation, evaluation};
   const nlohmann::json json = EvaluationJson(report);
   EXPECT_EQ(json["pairs"].size(), 2u);
   EXPECT_NE(EvaluationMarkdown(report).find("| synthetic | hnn-default |"), std::string::npos);
+  EXPECT_NE(EvaluationMarkdown(report).find("| **overall** | opencv-sgbm (sweep) |"), std::string::npos);
+  const cv::Mat ranked_plot = DrawRankedPlot(evaluation);
+  EXPECT_EQ(ranked_plot.type(), CV_8UC3);
+  EXPECT_GE(ranked_plot.cols, 800);
   const cv::Mat plot = DrawPrecisionDensityPlot(report);
   EXPECT_EQ(plot.type(), CV_8UC3);
   EXPECT_GT(plot.cols, 400);
+}
+
+// ---- Ranked by confidence ---------------------------------------------------------------
+
+// 400 matches at d = 3 on a 10x100 truth, every third one 5 px off; `confidence` per match.
+MethodMatches RankedFixture(const std::function<float(int, bool)>& confidence) {
+  MethodMatches m;
+  m.method = "fixture";
+  for (int i = 0; i < 400; ++i) {
+    const bool good = i % 3 != 0;
+    const float x = static_cast<float>(10 + i % 80), y = static_cast<float>(i / 80);
+    m.left.emplace_back(x, y);
+    m.right.emplace_back(x - (good ? 3.0f : 8.0f), y);
+    m.confidence.push_back(confidence(i, good));
+  }
+  return m;
+}
+
+struct RankedTruth {
+  cv::Mat disparity = cv::Mat(10, 100, CV_32F, cv::Scalar(3.0f));
+  cv::Mat visible = cv::Mat(10, 100, CV_8U, cv::Scalar(255));
+  TruthView view() const { return TruthView{&disparity, &visible}; }
+};
+
+TEST(RankedMatches, ThePerfectRankingPassesTheCheckRandomAndConstantOnesDoNot) {
+  const RankedTruth truth;
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  const RankedMatches perfect = RankMatches(
+      RankedFixture([](int, bool good) { return good ? 1.0f : 0.0f; }), truth.view(), 800);
+  const RankedMatches shuffled =
+      RankMatches(RankedFixture([&](int, bool) { return uniform(random); }), truth.view(), 800);
+  const RankedMatches constant =
+      RankMatches(RankedFixture([](int, bool) { return 1.0f; }), truth.view(), 800);
+  for (const RankedMatches* r : {&perfect, &shuffled, &constant}) {
+    EXPECT_EQ(r->entries.size(), 400u);
+    EXPECT_NEAR(r->Full().error(), 134.0 / 400.0, 1e-9);
+    EXPECT_NEAR(r->Full().density(), 0.5, 1e-12);
+  }
+  // Acceptance form: error(top 25 %) <= 0.5 x error(all).
+  auto ratio = [](const RankedMatches& r) { return r.TopShare(0.25).error() / r.Full().error(); };
+  EXPECT_DOUBLE_EQ(ratio(perfect), 0.0);
+  EXPECT_GT(ratio(shuffled), 0.6);
+  // Equal confidences are never ordered by chance: a cut through them keeps their average.
+  EXPECT_NEAR(ratio(constant), 1.0, 1e-9);
+  EXPECT_NEAR(constant.TopShare(0.25).kept, 100.0, 1e-9);
+  // An inverted ranking is worse than none.
+  const RankedMatches inverted = RankMatches(
+      RankedFixture([](int, bool good) { return good ? 0.0f : 1.0f; }), truth.view(), 800);
+  EXPECT_GT(ratio(inverted), 2.0);
+}
+
+TEST(RankedMatches, CutsAtADensityAndSaysWhenItIsNotReached) {
+  const RankedTruth truth;
+  // Confidence falls with i: the first 200 (density 25 % of 800) hold 66 wrong ones (i % 3 == 0).
+  MethodMatches m = RankedFixture([](int i, bool) { return 1.0f - 0.001f * static_cast<float>(i); });
+  m.left.emplace_back(500.0f, 5.0f);  // outside the truth: ignored
+  m.right.emplace_back(497.0f, 5.0f);
+  m.confidence.push_back(2.0f);
+  m.left.emplace_back(50.0f, 5.0f);  // invalid output: not kept
+  m.right.emplace_back(kNaN, kNaN);
+  m.confidence.push_back(3.0f);
+  const RankedMatches ranked = RankMatches(m, truth.view(), 800);
+  ASSERT_EQ(ranked.entries.size(), 400u);
+  const OperatingPoint quarter = ranked.At(0.25);
+  EXPECT_TRUE(quarter.reached);
+  EXPECT_NEAR(quarter.kept, 200.0, 1e-9);
+  EXPECT_NEAR(quarter.correct, 200.0 - 67.0, 1e-9);  // i = 0, 3, ..., 198: 67 wrong
+  EXPECT_NEAR(quarter.density(), 0.25, 1e-12);
+  EXPECT_TRUE(ranked.At(0.5).reached);
+  EXPECT_FALSE(ranked.At(0.51).reached);
+  const auto curve = ranked.Curve(10);
+  ASSERT_EQ(curve.size(), 10u);
+  EXPECT_NEAR(curve.back().density, 0.5, 1e-12);
+  EXPECT_THROW(RankMatches(MethodMatches{"x", {{1, 1}}, {}, {}, 0.0}, truth.view(), 1),
+               std::invalid_argument);
+  // A method without a single match (e.g. a preset that failed) reaches nothing, not 100 % error.
+  const RankedMatches none = RankMatches(MethodMatches{}, truth.view(), 800);
+  EXPECT_FALSE(none.Full().reached);
+  EXPECT_FALSE(none.At(0.25).reached);
+  EXPECT_TRUE(none.Curve().empty());
+}
+
+SweepPoint Setting(int ratio, double density, double precision) {
+  SweepPoint s;
+  s.uniqueness_ratio = ratio;
+  s.point.n_edges_with_truth = 1000;
+  s.point.kept = 1000.0 * density;
+  s.point.nonoccluded = s.point.kept;
+  s.point.correct = precision * s.point.nonoccluded;
+  s.point.reached = true;
+  return s;
+}
+
+TEST(SweepLookup, TheBestSettingReachingADensityIsTheMostPreciseOfTheDenseEnoughOnes) {
+  const std::vector<SweepPoint> sweep = {Setting(0, 0.90, 0.80), Setting(10, 0.70, 0.90),
+                                         Setting(30, 0.50, 0.95), Setting(60, 0.20, 0.97)};
+  EXPECT_EQ(BestSettingReaching(sweep, 0.25).setting, "uniqueness 30");
+  EXPECT_NEAR(BestSettingReaching(sweep, 0.25).precision(), 0.95, 1e-12);
+  EXPECT_NEAR(BestSettingReaching(sweep, 0.25).density(), 0.50, 1e-12) << "not cut down to D";
+  EXPECT_EQ(BestSettingReaching(sweep, 0.10).setting, "uniqueness 60");
+  EXPECT_EQ(BestSettingReaching(sweep, 0.50).setting, "uniqueness 30");
+  EXPECT_EQ(BestSettingReaching(sweep, 0.51).setting, "uniqueness 10");
+  EXPECT_EQ(BestSettingReaching(sweep, 0.75).setting, "uniqueness 0");
+  EXPECT_FALSE(BestSettingReaching(sweep, 0.95).reached);
+  EXPECT_EQ(DensestSetting(sweep).setting, "uniqueness 0");
+  // Not monotone: a denser setting that is also more precise wins.
+  const std::vector<SweepPoint> odd = {Setting(0, 0.90, 0.80), Setting(5, 0.80, 0.99),
+                                       Setting(10, 0.70, 0.90)};
+  EXPECT_EQ(BestSettingReaching(odd, 0.25).setting, "uniqueness 5");
+  EXPECT_FALSE(BestSettingReaching({}, 0.25).reached);
+}
+
+TEST(SweepUniqueness, StereoSgbmAndBmLoseDensityAsTheUniquenessRatioGrows) {
+  // Low contrast and independent noise in both views, so that many pixels are ambiguous.
+  SyntheticPair pair = MakePair(6.0, 31, 200, 150);
+  cv::theRNG().state = 99;
+  for (cv::Mat* view : {&pair.left, &pair.right}) {
+    cv::Mat noise(view->size(), CV_16S), noisy;
+    cv::randn(noise, 0, 6);
+    view->convertTo(noisy, CV_16S, 0.2, 100);
+    noisy += noise;
+    noisy.convertTo(*view, CV_8U);
+  }
+  const auto points = GridPoints(pair.left.cols, pair.left.rows, 6, 2);
+  const int n = static_cast<int>(points.size());
+  const std::vector<int> ratios(std::begin(kUniquenessSweep), std::end(kUniquenessSweep));
+  for (const bool semi_global : {true, false}) {
+    const auto sweep =
+        SweepUniqueness(pair.left, pair.right, points, semi_global, 0, 32, ViewOf(pair), n, ratios);
+    ASSERT_EQ(sweep.size(), ratios.size());
+    for (std::size_t i = 1; i < sweep.size(); ++i) {
+      EXPECT_EQ(sweep[i].uniqueness_ratio, ratios[i]);
+      EXPECT_LE(sweep[i].point.density(), sweep[i - 1].point.density() + 0.01)
+          << (semi_global ? "sgbm" : "bm") << " at uniqueness " << ratios[i];
+    }
+    EXPECT_GT(sweep.front().point.density(), sweep.back().point.density() + 0.05)
+        << (semi_global ? "sgbm" : "bm");
+    EXPECT_GT(sweep.front().point.precision(), 0.8) << (semi_global ? "sgbm" : "bm");
+    // Stricter settings keep surer matches.
+    EXPECT_GE(sweep.back().point.precision() + 0.01, sweep.front().point.precision());
+  }
+}
+
+TEST(Baselines, WinnerTakeAllMarginIsSmallOnARepeatedPatternAndLargeOnTexture) {
+  const SyntheticPair textured = MakePair(7.0, 41);
+  cv::Mat stripes(120, 160, CV_8U);
+  for (int y = 0; y < stripes.rows; ++y)
+    for (int x = 0; x < stripes.cols; ++x)
+      stripes.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(128 + 100 * std::sin(x * 2 * M_PI / 6.0));
+  const auto points = GridPoints(160, 120, 12, 9);
+  const MethodMatches on_texture = WinnerTakeAllZncc(textured.left, textured.right, points, 7, 0, 24);
+  const MethodMatches on_stripes = WinnerTakeAllZncc(stripes, stripes, points, 7, 0, 24);
+  double texture_margin = 0.0, stripe_margin = 0.0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_GE(on_texture.confidence[i], 0.0f);
+    EXPECT_LE(on_texture.confidence[i], 2.0f);
+    texture_margin += on_texture.confidence[i];
+    stripe_margin += on_stripes.confidence[i];
+  }
+  texture_margin /= static_cast<double>(points.size());
+  stripe_margin /= static_cast<double>(points.size());
+  EXPECT_GT(texture_margin, 0.2);
+  EXPECT_LT(stripe_margin, 0.05);
+}
+
+PairEvaluation HandMadePair(const std::string& name, const std::vector<SweepPoint>& sgbm,
+                            const std::function<float(int, bool)>& hnn_confidence) {
+  static const RankedTruth truth;
+  PairEvaluation pair;
+  pair.name = name;
+  RankedMethod hnn;
+  hnn.method = "hnn-default";
+  hnn.ranked = RankMatches(RankedFixture(hnn_confidence), truth.view(), 800);
+  RankedMethod sweep;
+  sweep.method = "opencv-sgbm (sweep)";
+  sweep.swept = true;
+  sweep.sweep = sgbm;
+  for (SweepPoint& s : sweep.sweep) {  // the same densities over this pair's 800 edge pixels
+    s.point.n_edges_with_truth = 800;
+    s.point.kept *= 0.8;
+    s.point.nonoccluded *= 0.8;
+    s.point.correct *= 0.8;
+  }
+  pair.ranked = {hnn, sweep};
+  return pair;
+}
+
+TEST(SummarizeRanked, PoolsCountsOverPairsAndComparesAtTheSameDensity) {
+  const std::vector<SweepPoint> sgbm = {Setting(0, 0.80, 0.80), Setting(30, 0.30, 0.90)};
+  EvaluationReport report;
+  report.pairs = {HandMadePair("a", sgbm, [](int, bool good) { return good ? 1.0f : 0.0f; }),
+                  HandMadePair("b", {Setting(0, 0.40, 0.70)}, [](int, bool) { return 0.5f; })};
+  const RankedSummary summary = SummarizeRanked(report);
+  // 2 pairs x 2 methods + 2 overall rows.
+  ASSERT_EQ(summary.rows.size(), 6u);
+  const RankedSummary::Row& overall_hnn = summary.rows[4];
+  EXPECT_EQ(overall_hnn.pair, "overall");
+  EXPECT_EQ(overall_hnn.method, "hnn-default");
+  EXPECT_EQ(overall_hnn.full.n_pairs, 2);
+  EXPECT_NEAR(overall_hnn.full.kept, 800.0, 1e-9);
+  EXPECT_NEAR(overall_hnn.full.density(), 0.5, 1e-12);
+  // At 25 %: pair a perfect (0 wrong of 200), pair b constant (1/3 of 200 wrong).
+  EXPECT_NEAR(overall_hnn.at[0].error(), (0.0 + 200.0 * 134.0 / 400.0) / 400.0, 1e-9);
+  // SGBM: pair a's best setting at 25 % is uniqueness 30; pair b reaches only 40 %.
+  const RankedSummary::Row& overall_sgbm = summary.rows[5];
+  EXPECT_EQ(overall_sgbm.at[0].n_pairs, 2);
+  EXPECT_EQ(overall_sgbm.at[0].setting, "per pair");
+  EXPECT_EQ(overall_sgbm.at[1].n_pairs, 1);
+  EXPECT_EQ(overall_sgbm.at[2].n_pairs, 1);
+  ASSERT_EQ(summary.ratios.size(), 3u);
+  EXPECT_NEAR(summary.ratios[0].ratio(0), 0.0, 1e-12);
+  // At the HNN's full density (50 %), pair a's SGBM answer is uniqueness 0 (80 %, error 20 %).
+  EXPECT_EQ(summary.ratios[0].sgbm[3].setting, "uniqueness 0");
+  EXPECT_NEAR(summary.ratios[0].ratio(3), (134.0 / 400.0) / 0.2, 1e-9);
+  EXPECT_FALSE(std::isfinite(summary.ratios[1].ratio(3))) << "pair b's SGBM never reaches 50 %";
+  // Overall at full density pools only pair a.
+  EXPECT_EQ(summary.ratios[2].hnn[3].n_pairs, 1);
+  // Ranking check: perfect on a, none on b, pooled overall.
+  ASSERT_EQ(summary.ranking.size(), 3u);
+  EXPECT_DOUBLE_EQ(summary.ranking[0].ratio(), 0.0);
+  EXPECT_NEAR(summary.ranking[1].ratio(), 1.0, 1e-9);
+  EXPECT_EQ(summary.ranking[2].pair, "overall");
+  EXPECT_NEAR(summary.ranking[2].ratio(), 0.5, 1e-9);
+
+  const std::string markdown = RankedMarkdown(report);
+  EXPECT_NE(markdown.find("| pair | method | 25 % | 50 % | 75 % | full: density % | full: error % |"),
+            std::string::npos);
+  EXPECT_NE(markdown.find("| a | opencv-sgbm (sweep) | 10.0 (u 30) | 20.0 (u 0) | 20.0 (u 0) | 80.0 | 20.0 (u 0) |"),
+            std::string::npos) << markdown;
+  EXPECT_NE(markdown.find("| b | hnn-default | 33.5 | 33.5 | n/a | 50.0 | 33.5 |"), std::string::npos)
+      << markdown;
+  EXPECT_NE(markdown.find("(1/2 pairs)"), std::string::npos) << markdown;
+  const nlohmann::json json = EvaluationJson(report);
+  ASSERT_TRUE(json.contains("ranked"));
+  EXPECT_EQ(json["ranked"]["table"].size(), 6u);
+  EXPECT_TRUE(json["ranked"]["table"][1]["at"]["0.75"].is_object());
+  EXPECT_TRUE(json["ranked"]["table"][3]["at"]["0.75"].is_null());
+  EXPECT_EQ(json["pairs"][0]["ranked"][1]["sweep"].size(), 2u);
+  const cv::Mat plot = DrawRankedPlot(report.pairs[0]);
+  EXPECT_GE(plot.cols, 800);
+}
+
+TEST(Middlebury, TheVendoredTeddyGivesTheSameOcclusionsAsTheSharedOne) {
+  const std::string shared = std::string(HNNSTEREO_SHARED_DIR) + "/datasets/middlebury2003_teddy";
+  if (!std::filesystem::exists(shared)) GTEST_SKIP() << shared << " is absent";
+  const MiddleburyPair vendored =
+      LoadMiddlebury(std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy");
+  const MiddleburyPair original = LoadMiddlebury(shared);
+  EXPECT_EQ(vendored.occlusion_source, original.occlusion_source);
+  EXPECT_EQ(cv::countNonZero(vendored.nonoccluded != original.nonoccluded), 0);
+  EXPECT_EQ(vendored.max_disparity, original.max_disparity);
 }
 
 TEST(EvaluationOptions, RejectsBadSettings) {
