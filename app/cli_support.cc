@@ -159,6 +159,13 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--seed", o.dynamics.seed, "Seed of random initial states and update order")
       ->capture_default_str();
   cmd->add_option("--dt", o.dynamics.time_step, "Euler time step (units of tau)")->capture_default_str();
+  stop_option = cmd->add_option(
+      "--stop", stop_rule,
+      "What ends the parallel engines' run: energy (|dE| below the tolerance, the thesis's rule) "
+      "or decisions (every row's winner settled); default: the preset's");
+  check_interval_option = cmd->add_option(
+      "--check-interval", o.dynamics.energy_interval,
+      "Steps between convergence checks (energy and decisions); default: the preset's");
   cmd->add_option("--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines")
       ->capture_default_str();
   cmd->add_option("--max-updates", o.dynamics.max_updates,
@@ -228,6 +235,19 @@ void MatcherFlags::Resolve() {
     o.dynamics.activation = hnn::Activation::kDiscrete;
   } else {
     throw std::invalid_argument("unknown --activation '" + activation + "'");
+  }
+  if (!given(stop_option)) {
+    o.dynamics.stop_rule = chosen->matcher.dynamics.stop_rule;
+  } else if (stop_rule == "energy") {
+    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
+  } else if (stop_rule == "decisions") {
+    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
+  } else {
+    throw std::invalid_argument("unknown --stop '" + stop_rule + "' (energy or decisions)");
+  }
+  if (!given(check_interval_option)) {
+    o.dynamics.energy_interval = chosen->matcher.dynamics.energy_interval;
+    o.dynamics.stable_checks = chosen->matcher.dynamics.stable_checks;
   }
   if (auto w = hnn::ParseWeightStorage(weight_storage)) {
     o.opencl.storage = *w;

@@ -31,6 +31,9 @@ struct MatcherFlags {
   CLI::Option* network_option = nullptr;
   CLI::Option* top_k_option = nullptr;
   CLI::Option* support_radius_option = nullptr;
+  CLI::Option* stop_option = nullptr;
+  CLI::Option* check_interval_option = nullptr;
+  std::string stop_rule = "decisions";
   std::string initial_state = "off";
   std::string activation = "continuous";
   std::string decode = "thesis";

@@ -21,6 +21,28 @@ void CheckOptions(const EnergyOptions& energy, const DynamicsOptions& dynamics) 
   if (auto error = dynamics.Check(); !error.empty()) throw std::invalid_argument(error);
 }
 
+}  // namespace
+
+int UpdateRowDecisions(const NetworkLayout& layout, const std::vector<double>& u,
+                       std::vector<int>* decisions) {
+  int changed = 0;
+  for (int i = 0; i < layout.n_rows; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    int best = -1;
+    double best_u = 0.0;
+    for (int a = layout.row_offsets[ui]; a < layout.row_offsets[ui + 1]; ++a) {
+      const double ua = u[static_cast<std::size_t>(a)];
+      if (best < 0 || ua > best_u) best = a - layout.row_offsets[ui], best_u = ua;
+    }
+    const int decision = best >= 0 && best_u > 0.0 ? best : -1;
+    if (decision != (*decisions)[ui]) ++changed;
+    (*decisions)[ui] = decision;
+  }
+  return changed;
+}
+
+namespace {
+
 double IntegralTerm(const std::vector<double>& V, const DynamicsOptions& dynamics) {
   if (dynamics.activation == Activation::kDiscrete) return 0.0;
   double sum = 0.0;
@@ -137,6 +159,8 @@ SolveReport SolveCpu(const MatchingProblem& problem, const EnergyOptions& energy
                                                           : V[a] - 0.5;
   }
   const double tolerance = dynamics.energy_tolerance * std::max(1, layout.n_neurons);
+  const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
+  std::vector<int> decisions(static_cast<std::size_t>(layout.n_rows), -2);
   double last_check_energy = 0.0;
   int stable = 0;
   int step = 0;
@@ -150,7 +174,14 @@ SolveReport SolveCpu(const MatchingProblem& problem, const EnergyOptions& energy
       if (step == 0) report.energy_initial = E;
       report.energy_trace.push_back(E);
       report.energy_trace_iterations.push_back(step);
-      if (step > 0) stable = std::abs(E - last_check_energy) <= tolerance ? stable + 1 : 0;
+      if (by_decisions) {
+        const int changed = UpdateRowDecisions(layout, u, &decisions);
+        if (step > 0) {
+          stable = changed <= dynamics.decision_tolerance * std::max(1, layout.n_rows) ? stable + 1 : 0;
+        }
+      } else if (step > 0) {
+        stable = std::abs(E - last_check_energy) <= tolerance ? stable + 1 : 0;
+      }
       last_check_energy = E;
       report.energy_final = E;
       if (stable >= dynamics.stable_checks) {

@@ -28,4 +28,10 @@ double LyapunovEnergy(const NetworkLayout& layout, const std::vector<double>& we
                       const std::vector<double>& biases, const std::vector<double>& V,
                       const EnergyOptions& energy, const DynamicsOptions& dynamics);
 
+/// The decision of every row (the index within the row of its neuron with the largest u when
+/// that u > 0, else -1) written into `decisions` (n_rows); returns how many rows changed. The
+/// kDecisions stop rule (DynamicsOptions::StopRule) counts these changes between checks.
+int UpdateRowDecisions(const NetworkLayout& layout, const std::vector<double>& u,
+                       std::vector<int>* decisions);
+
 }  // namespace hnnstereo::hnn

@@ -64,6 +64,9 @@ std::string DynamicsOptions::Check() const {
   if (max_steps < 0) return "max_steps must be >= 0";
   if (energy_interval < 1) return "energy_interval must be >= 1";
   if (stable_checks < 1) return "stable_checks must be >= 1";
+  if (!(decision_tolerance >= 0.0 && decision_tolerance <= 1.0)) {
+    return "decision_tolerance must be in [0, 1]";
+  }
   if (max_updates < 0) return "max_updates must be >= 0";
   if (stable_updates < 1) return "stable_updates must be >= 1";
   return {};

@@ -95,6 +95,21 @@ class DeviceNetwork {
   }
 
   WeightStorage storage() const { return storage_; }
+  const std::vector<int>& rows_per_network() const { return rows_per_network_; }
+
+  // Rows whose decision changed since the last call, per network (kDecisions stop rule; empty
+  // otherwise). `parity` < 0: the CSR state u; else the blocked state buffer the step read.
+  std::vector<int> DecisionChanges(const DynamicsOptions& dynamics, int parity) {
+    if (dynamics.stop_rule != DynamicsOptions::StopRule::kDecisions) return {};
+    std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
+    queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(), changes.data());
+    cl::Kernel& kernel = parity < 0 ? decisions_csr_ : decisions_blocked_[parity];
+    queue_.enqueueNDRangeKernel(kernel, cl::NullRange, decision_range_, local_);
+    queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes.size(), changes.data());
+    ++launches_;
+    ++blocking_reads_;
+    return changes;
+  }
   int launches() const { return launches_; }
   int blocking_reads() const { return blocking_reads_; }
 
@@ -123,7 +138,7 @@ class DeviceNetwork {
 
   void BuildBlocks() {
     if (storage_ == WeightStorage::kOnTheFly) return;
-    queue_.enqueueNDRangeKernel(build_blocks_, cl::NullRange, row_range_, local_);
+    queue_.enqueueNDRangeKernel(build_blocks_, cl::NullRange, build_range_, local_);
     ++launches_;
   }
   // One fused step from state buffer `parity` into the other; column sums first when the
@@ -331,9 +346,20 @@ class DeviceNetwork {
 
     const EnergyParams params = Params(energy);
     if (weights_mode != 2) {
-      build_blocks_ = cl::Kernel(program, "build_weight_blocks");
-      SetArgs(build_blocks_, static_cast<cl_int>(L.n_rows), row_count_, neighbour_offsets_,
-              neighbours_, slot_right_, slot_correlation_, feature_point_, params, blocks_);
+      // One work-item per weight (build_weight_blocks_flat): block t's row from block_row.
+      std::vector<int> block_row(std::max<std::size_t>(n_blocks, 1), 0);
+      for (int i = 0; i < L.n_rows; ++i) {
+        for (int t = L.feature_neighbour_offsets[static_cast<std::size_t>(i)];
+             t < L.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]; ++t) {
+          block_row[static_cast<std::size_t>(t)] = i;
+        }
+      }
+      block_row_ = MakeBuffer(context, ro, block_row);
+      const auto n_weights = static_cast<cl_long>(n_blocks) * row_pad_ * row_pad_;
+      build_blocks_ = cl::Kernel(program, "build_weight_blocks_flat");
+      SetArgs(build_blocks_, n_weights, block_row_, neighbours_, row_count_, slot_right_,
+              slot_correlation_, feature_point_, params, blocks_);
+      build_range_ = RoundedRange(static_cast<std::size_t>(std::max<cl_long>(n_weights, 1)));
     }
     // Rows per work-item: a GPU wants one row per work-item in work-groups of 64; on a CPU
     // device PoCL runs each work-group of one work-item as a loop over its rows with the
@@ -365,6 +391,49 @@ class DeviceNetwork {
     row_range_ = RoundedRange(rows);
     column_range_ = RoundedRange(static_cast<std::size_t>(std::max(L.n_columns, 1)));
     segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
+    std::vector<int> row_first(rows, 0);
+    for (std::size_t i = 0; i < rows; ++i) row_first[i] = static_cast<int>(i) * row_pad_;
+    SetUpDecisions(program, row_first, nullptr);
+  }
+
+  // Buffers and kernels of the kDecisions stop rule; `row_first` indexes u of either layout.
+  void SetUpDecisions(const cl::Program& program, std::vector<int> row_first,
+                      const cl::Buffer* u_csr) {
+    const NetworkLayout& L = net_.layout;
+    const cl::Context& context = runtime_.context();
+    std::vector<int> row_size(static_cast<std::size_t>(std::max(L.n_rows, 1)), 0);
+    std::vector<int> network_of_row(row_size.size(), 0);
+    rows_per_network_.assign(static_cast<std::size_t>(n_networks()), 0);
+    for (int i = 0; i < L.n_rows; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      row_size[ui] = L.row_offsets[ui + 1] - L.row_offsets[ui];
+      // The network of a row: the first network whose neuron range ends beyond the row start.
+      int p = 0;
+      while (p + 1 < n_networks() && L.row_offsets[ui] >= net_.network_offsets[static_cast<std::size_t>(p) + 1]) ++p;
+      network_of_row[ui] = p;
+      ++rows_per_network_[static_cast<std::size_t>(p)];
+    }
+    row_first.resize(row_size.size(), 0);
+    std::vector<int> decisions(row_size.size(), -2);
+    std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
+    row_first_ = MakeBuffer(context, CL_MEM_READ_ONLY, row_first);
+    row_size_ = MakeBuffer(context, CL_MEM_READ_ONLY, row_size);
+    decision_network_ = MakeBuffer(context, CL_MEM_READ_ONLY, network_of_row);
+    decisions_ = MakeBuffer(context, CL_MEM_READ_WRITE, decisions);
+    changes_ = MakeBuffer(context, CL_MEM_READ_WRITE, changes);
+    auto make = [&](const cl::Buffer& u) {
+      cl::Kernel kernel(program, "row_decisions");
+      SetArgs(kernel, static_cast<cl_int>(L.n_rows), row_first_, row_size_, decision_network_,
+              active_, u, decisions_, changes_);
+      return kernel;
+    };
+    if (u_csr) {
+      decisions_csr_ = make(*u_csr);
+    } else {
+      decisions_blocked_[0] = make(u_state_[0]);
+      decisions_blocked_[1] = make(u_state_[1]);
+    }
+    decision_range_ = RoundedRange(row_size.size());
   }
 
   static EnergyParams Params(const EnergyOptions& energy) {
@@ -529,6 +598,9 @@ class DeviceNetwork {
     neuron_range_ = RoundedRange(n);
     line_range_ = RoundedRange(static_cast<std::size_t>(L.n_rows) + static_cast<std::size_t>(L.n_columns));
     segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
+    SetUpDecisions(program,
+                   std::vector<int>(L.row_offsets.begin(), L.row_offsets.end() - (L.n_rows > 0 ? 1 : 0)),
+                   &u_);
   }
 
   template <typename... Args>
@@ -567,9 +639,14 @@ class DeviceNetwork {
   HostBlocked host_blocked_;
   std::vector<int> row_network_;
   cl::Buffer row_count_, column_slots_, slot_right_, slot_correlation_, slot_bias_, slot_column_,
-      network_of_row_, blocks_, row_energy_, V_state_[2], u_state_[2];
+      network_of_row_, blocks_, row_energy_, V_state_[2], u_state_[2], block_row_;
   cl::Kernel build_blocks_, step_[2], column_sums_blocked_[2];
-  cl::NDRange row_range_, column_range_, step_range_, step_local_{1};
+  // kDecisions stop rule.
+  std::vector<int> rows_per_network_;
+  cl::Buffer row_first_, row_size_, decision_network_, decisions_, changes_;
+  cl::Kernel decisions_csr_, decisions_blocked_[2];
+  cl::NDRange decision_range_;
+  cl::NDRange row_range_, column_range_, step_range_, step_local_{1}, build_range_;
 
  public:
   const cl::Buffer& field_buffer() const { return field_; }
@@ -583,10 +660,13 @@ namespace {
 // network at `step`, and deactivates those whose test passed (thesis: |dE| below the tolerance
 // for `stable_checks` consecutive checks) or that reached the step limit. Returns whether any
 // network stopped at this check.
-bool CheckConvergence(int step, const std::vector<float>& energies, const DynamicsOptions& dynamics,
+bool CheckConvergence(int step, const std::vector<float>& energies,
+                      const std::vector<int>& decision_changes,
+                      const std::vector<int>& rows_per_network, const DynamicsOptions& dynamics,
                       std::vector<SolveReport>* reports, std::vector<int>* active,
                       std::vector<double>* last_energy, std::vector<int>* stable,
                       std::size_t* n_active) {
+  const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
   bool changed = false;
   for (std::size_t p = 0; p < reports->size(); ++p) {
     if (!(*active)[p]) continue;
@@ -596,7 +676,13 @@ bool CheckConvergence(int step, const std::vector<float>& energies, const Dynami
     if (step == 0) report.energy_initial = E;
     report.energy_trace.push_back(E);
     report.energy_trace_iterations.push_back(step);
-    if (step > 0) (*stable)[p] = std::abs(E - (*last_energy)[p]) <= tolerance ? (*stable)[p] + 1 : 0;
+    if (step > 0) {
+      const bool settled =
+          by_decisions ? decision_changes[p] <= dynamics.decision_tolerance *
+                                                    std::max(1, rows_per_network[p])
+                       : std::abs(E - (*last_energy)[p]) <= tolerance;
+      (*stable)[p] = settled ? (*stable)[p] + 1 : 0;
+    }
     (*last_energy)[p] = E;
     report.energy_final = E;
     report.iterations = step;
@@ -640,8 +726,11 @@ void SolveCsr(DeviceNetwork& device, const DynamicsOptions& dynamics,
   for (int step = 0;; ++step) {
     device.Field();
     if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
-      const bool changed = CheckConvergence(step, device.Energies(), dynamics, reports, &active,
-                                            &last_energy, &stable, &n_active);
+      const std::vector<float> energies = device.Energies();
+      const std::vector<int> changes = device.DecisionChanges(dynamics, -1);
+      const bool changed = CheckConvergence(step, energies, changes, device.rows_per_network(),
+                                            dynamics, reports, &active, &last_energy, &stable,
+                                            &n_active);
       if (n_active == 0) break;
       if (changed) device.SetActive(active);
     }
@@ -671,8 +760,11 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
     device.Step(parity);
     if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
       const std::vector<int> before = active;
-      const bool changed = CheckConvergence(step, device.RowEnergies(), dynamics, reports,
-                                            &active, &last_energy, &stable, &n_active);
+      const std::vector<float> energies = device.RowEnergies();
+      const std::vector<int> changes = device.DecisionChanges(dynamics, parity);
+      const bool changed = CheckConvergence(step, energies, changes, device.rows_per_network(),
+                                            dynamics, reports, &active, &last_energy, &stable,
+                                            &n_active);
       for (std::size_t p = 0; p < n; ++p) {
         if (before[p] && !active[p]) stop_parity[p] = parity;
       }

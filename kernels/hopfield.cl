@@ -35,13 +35,22 @@ typedef struct {
 } EnergyParams;
 
 // ch. 5.3.5: |d_a - d_b| / |c_a - c_b|, d = right - left (2D), c = (left + right) / 2.
+// Written on scalar components: PoCL's loop vectoriser cannot widen float2 values, and the flat
+// weight-building kernel relies on it.
+float disparity_gradient_xy(float lax, float lay, float rax, float ray,
+                            float lbx, float lby, float rbx, float rby) {
+  const float ddx = (rax - lax) - (rbx - lbx);
+  const float ddy = (ray - lay) - (rby - lby);
+  const float change = sqrt(ddx * ddx + ddy * ddy);
+  const float csx = 0.5f * (lax + rax) - 0.5f * (lbx + rbx);
+  const float csy = 0.5f * (lay + ray) - 0.5f * (lby + rby);
+  const float separation = sqrt(csx * csx + csy * csy);
+  const float gradient = fmin(change / separation, MAX_DISPARITY_GRADIENT);
+  return separation < 1e-9f ? (change < 1e-9f ? 0.0f : MAX_DISPARITY_GRADIENT) : gradient;
+}
+
 float disparity_gradient(float2 la, float2 ra, float2 lb, float2 rb) {
-  const float2 dd = (ra - la) - (rb - lb);
-  const float change = sqrt(dd.x * dd.x + dd.y * dd.y);
-  const float2 cs = 0.5f * (la + ra) - 0.5f * (lb + rb);
-  const float separation = sqrt(cs.x * cs.x + cs.y * cs.y);
-  if (separation < 1e-9f) return change < 1e-9f ? 0.0f : MAX_DISPARITY_GRADIENT;
-  return fmin(change / separation, MAX_DISPARITY_GRADIENT);
+  return disparity_gradient_xy(la.x, la.y, ra.x, ra.y, lb.x, lb.y, rb.x, rb.y);
 }
 
 // f(X): eq. 6.6 (sigmoid) or the printed type 1 (exponential); X = +inf gives -1.
@@ -56,24 +65,33 @@ float compatibility_function(float X, const EnergyParams p) {
 #endif
 }
 
-float compatibility(float2 la, float2 ra, float ma, float2 lb, float2 rb, float mb,
-                    const EnergyParams p) {
+float compatibility_xy(float lax, float lay, float rax, float ray, float ma,
+                       float lbx, float lby, float rbx, float rby, float mb, const EnergyParams p) {
 #if OBJECTIVE == 0
-  const float g = 2.0f * native_exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;  // eq. 6.8
+  const float g = 2.0f * native_exp(-disparity_gradient_xy(lax, lay, rax, ray, lbx, lby, rbx, rby) / p.T) - 1.0f;  // eq. 6.8
   const float s = p.W1 * g + p.W2 * (ma + mb);                                   // eq. 6.7
   return compatibility_function(s < MIN_COMPAT_DENOMINATOR ? INFINITY : 1.0f / s, p);
 #elif OBJECTIVE == 1
-  const float disparity_change = fabs(length(ra - la) - length(rb - lb));
-  const float separation_change = fabs(length(la - lb) - length(ra - rb));
+  const float disparity_change =
+      fabs(sqrt((rax - lax) * (rax - lax) + (ray - lay) * (ray - lay)) -
+           sqrt((rbx - lbx) * (rbx - lbx) + (rby - lby) * (rby - lby)));
+  const float separation_change =
+      fabs(sqrt((lax - lbx) * (lax - lbx) + (lay - lby) * (lay - lby)) -
+           sqrt((rax - rbx) * (rax - rbx) + (ray - rby) * (ray - rby)));
   return compatibility_function(0.4f * disparity_change + 0.6f * separation_change, p);
 #elif OBJECTIVE == 2
-  return disparity_gradient(la, ra, lb, rb);
+  return disparity_gradient_xy(lax, lay, rax, ray, lbx, lby, rbx, rby);
 #elif OBJECTIVE == 3
   return (ma + mb + 2.0f) / 4.0f;
 #else
-  const float g = 2.0f * native_exp(-disparity_gradient(la, ra, lb, rb) / p.T) - 1.0f;
+  const float g = 2.0f * native_exp(-disparity_gradient_xy(lax, lay, rax, ray, lbx, lby, rbx, rby) / p.T) - 1.0f;
   return g * (ma + 1.0f) * (mb + 1.0f) / 4.0f;
 #endif
+}
+
+float compatibility(float2 la, float2 ra, float ma, float2 lb, float2 rb, float mb,
+                    const EnergyParams p) {
+  return compatibility_xy(la.x, la.y, ra.x, ra.y, ma, lb.x, lb.y, rb.x, rb.y, mb, p);
 }
 
 // Weight construction, one work-item per neuron: 2 A C_ab (+ offset) (eq. 6.11 without the
@@ -397,4 +415,81 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
     }
     row_energy[i] = energy;
   }
+}
+
+// The kDecisions stop rule (host/hopfield_options.h): the decision of every row of an active
+// network - the index within the row of its neuron with the largest u when that u > 0, else -1 -
+// is compared with the previous check's; changed rows are counted per network. Rows are given
+// as (first index into u, neuron count), so the same kernel serves the CSR and blocked layouts.
+__kernel void row_decisions(const int n_rows,
+                            __global const int* row_first,
+                            __global const int* row_size,
+                            __global const int* network_of_row,
+                            __global const int* active,
+                            __global const float* u,
+                            __global int* decisions,
+                            __global int* changes) {
+  const int i = get_global_id(0);
+  if (i >= n_rows) return;
+  const int network = network_of_row[i];
+  if (!active[network]) return;
+  const int first = row_first[i];
+  int best = -1;
+  float best_u = 0.0f;
+  for (int k = 0; k < row_size[i]; ++k) {
+    const float uk = u[first + k];
+    if (best < 0 || uk > best_u) {
+      best = k;
+      best_u = uk;
+    }
+  }
+  const int decision = best >= 0 && best_u > 0.0f ? best : -1;
+  if (decision != decisions[i]) atomic_inc(&changes[network]);
+  decisions[i] = decision;
+}
+
+// The weight blocks again, one work-item per weight: (block t, k, q) from the global id, so
+// every work-item runs the same straight-line code and PoCL's loopvec packs them into SIMD lanes
+// (build_weight_blocks, one work-item per row, has a data-dependent loop per row and runs
+// scalar). block_row[t] is the row i that block t belongs to.
+__kernel void build_weight_blocks_flat(const long n_weights,
+                                       __global const int* block_row,
+                                       __global const int* feature_neighbours,
+                                       __global const int* row_count,
+                                       __global const float* slot_right,      // x, y per slot
+                                       __global const float* slot_correlation,
+                                       __global const float* feature_point,   // x, y per row
+                                       const EnergyParams p,
+#if WEIGHTS == 1
+                                       __global half* blocks
+#else
+                                       __global float* blocks
+#endif
+                                       ) {
+  const long at = get_global_id(0);
+  if (at >= n_weights) return;
+  const int t = (int)(at / (ROW_PAD * ROW_PAD));
+  const int kq = (int)(at - (long)t * (ROW_PAD * ROW_PAD));
+  const int k = kq / ROW_PAD;
+  const int q = kq - k * ROW_PAD;
+  const int i = block_row[t];
+  const int j = feature_neighbours[t];
+  const int a = i * ROW_PAD + k, b = j * ROW_PAD + q;
+  const float lax = feature_point[2 * i], lay = feature_point[2 * i + 1];
+  const float lbx = feature_point[2 * j], lby = feature_point[2 * j + 1];
+  float w = 2.0f * p.A * compatibility_xy(lax, lay, slot_right[2 * a], slot_right[2 * a + 1],
+                                          slot_correlation[a], lbx, lby, slot_right[2 * b],
+                                          slot_right[2 * b + 1], slot_correlation[b], p) +
+            p.weight_offset;
+#if DISTANCE_ATTENUATION
+  const float dx = lax - lbx, dy = lay - lby;
+  w *= 1.0f / (1.0f + exp(p.attenuation_slope * (sqrt(dx * dx + dy * dy) - p.attenuation_centre)));
+#endif
+  const bool real = k < row_count[i] && q < row_count[j] && !(i == j && k == q);
+  w = real ? w : 0.0f;
+#if WEIGHTS == 1
+  vstore_half(w, at, blocks);
+#else
+  blocks[at] = w;
+#endif
 }
