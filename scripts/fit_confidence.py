@@ -26,7 +26,7 @@ import tempfile
 import numpy as np
 from PIL import Image
 
-FEATURES = ["potential_margin", "correlation", "correlation_margin"]
+FEATURES = ["potential_margin"]  # the fitted default; add correlation, correlation_margin to compare
 
 
 def read_pfm(path):
@@ -78,7 +78,10 @@ def load_pair(directory):
     return None
 
 
-def run_match(binary, left, right, max_disparity, extra):
+def run_match(binary, left, right, max_disparity, extra, cache=None, name=""):
+    if cache and os.path.isfile(os.path.join(cache, name + ".json")):
+        with open(os.path.join(cache, name + ".json")) as f:
+            return json.load(f)
     with tempfile.TemporaryDirectory() as tmp:
         report = os.path.join(tmp, "r.json")
         cmd = [binary, "match", "--left", left, "--right", right, "--rectified",
@@ -86,7 +89,12 @@ def run_match(binary, left, right, max_disparity, extra):
                "--report", report, "--quiet"] + extra
         subprocess.run(cmd, check=True)
         with open(report) as f:
-            return json.load(f)
+            data = json.load(f)
+    if cache:
+        os.makedirs(cache, exist_ok=True)
+        with open(os.path.join(cache, name + ".json"), "w") as f:
+            json.dump(data, f)
+    return data
 
 
 def sigmoid(z):
@@ -122,9 +130,13 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--binary", default="build/hnnstereo")
     parser.add_argument("--dataset", default="../shared/datasets")
-    parser.add_argument("--cap", type=float, default=8.0, help="potential_margin cap")
+    parser.add_argument("--cap", type=float, default=1e4, help="potential_margin cap")
     parser.add_argument("--match-args", default="", help="extra arguments for match")
+    parser.add_argument("--cache", default="", help="keep/reuse the match reports in this folder")
+    parser.add_argument("--features", default=",".join(FEATURES),
+                        help="comma-separated subset of the features to fit")
     args = parser.parse_args()
+    FEATURES[:] = [f for f in args.features.split(",") if f]
     pairs = {}
     for name in sorted(os.listdir(args.dataset)):
         directory = os.path.join(args.dataset, name)
@@ -136,7 +148,8 @@ def main():
         left, right, gt = loaded
         max_disparity = int(math.ceil(np.nanmax(gt) / 16.0) * 16)
         print(f"{name}: matching (max disparity {max_disparity})", file=sys.stderr)
-        report = run_match(args.binary, left, right, max_disparity, args.match_args.split())
+        report = run_match(args.binary, left, right, max_disparity, args.match_args.split(),
+                           args.cache, name)
         columns = report["matches"]["columns"]
         rows = np.array(report["matches"]["rows"], dtype=np.float64).reshape(-1, len(columns))
         col = {c: i for i, c in enumerate(columns)}
