@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "vision/lens_distortion.h"
+#include "vision/setup_checks.h"
 
 namespace hnnstereo::app {
 
@@ -72,6 +73,8 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
   pair.left = vision::LoadImage(left_path);
   pair.right = vision::LoadImage(right_path);
   vision::CheckSameSize(pair.left, pair.right);
+  // Named after the options here; SensePositions checks again for library callers.
+  vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");
   if (calibration.image_width > 0 && (calibration.image_width != pair.left.grey.cols ||
                                       calibration.image_height != pair.left.grey.rows)) {
     throw std::invalid_argument("calibration '" + calibration_name + "' is for " +

@@ -1,8 +1,12 @@
 #include "app/cli_support.h"
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <set>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -268,12 +272,82 @@ void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {
 
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {
   if (engine != hnn::EngineKind::kOpenCL) return nullptr;
-  ocl::DeviceSelection selection = ocl::DeviceSelection::FromEnvironment();
+  const ocl::DeviceSelection from_environment = ocl::DeviceSelection::FromEnvironment();
+  ocl::DeviceSelection selection = from_environment;
   if (!device.empty()) selection.device = device;
   std::string why_not;
   auto runtime = ocl::Runtime::Create(selection, &why_not);
-  if (!runtime) std::cerr << "hnnstereo: notice: " << why_not << "; using the cpu engine\n";
-  return runtime;
+  if (runtime) return runtime;
+  if (selection.empty()) {
+    // Nothing was asked for: the cpu engine runs the same dynamics (the matcher says so).
+    return nullptr;
+  }
+  // A device that was asked for and does not exist is an error, never a silent fallback.
+  std::string asked;
+  if (!device.empty()) {
+    asked = "--device '" + device + "'";
+  } else if (!from_environment.device.empty()) {
+    asked = "HNNSTEREO_OPENCL_DEVICE='" + from_environment.device + "'";
+  }
+  if (!from_environment.platform.empty()) {
+    asked += std::string(asked.empty() ? "" : " with ") + "HNNSTEREO_OPENCL_PLATFORM='" +
+             from_environment.platform + "'";
+  }
+  throw std::invalid_argument(asked + ": " + why_not + " (see 'hnnstereo devices'; --engine cpu "
+                              "runs without OpenCL)");
+}
+
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs) {
+  namespace fs = std::filesystem;
+  std::set<fs::path> seen;
+  for (const auto& [option, path] : outputs) {
+    if (path.empty()) continue;
+    const fs::path target = fs::absolute(path).lexically_normal();
+    if (!seen.insert(target).second) {
+      throw std::invalid_argument(option + " '" + path + "' is also another output of this command");
+    }
+    std::error_code error;
+    if (fs::is_directory(target, error)) {
+      throw std::invalid_argument(option + " '" + path + "' is a folder, not a file");
+    }
+    const fs::path folder = target.parent_path();
+    if (!fs::is_directory(folder, error)) {
+      throw std::invalid_argument(option + " '" + path + "': folder '" + folder.string() +
+                                  "' does not exist");
+    }
+    // Try what the atomic write will do: create a temporary file beside the target.
+    const fs::path probe =
+        folder / (".hnnstereo-write-test-" + std::to_string(static_cast<long>(::getpid())));
+    {
+      std::ofstream out(probe);
+      if (!out) {
+        throw std::invalid_argument(option + " '" + path + "': folder '" + folder.string() +
+                                    "' is not writable");
+      }
+    }
+    fs::remove(probe, error);
+    if (fs::exists(target, error) && ::access(target.c_str(), W_OK) != 0) {
+      throw std::invalid_argument(option + " '" + path + "' exists and is not writable");
+    }
+  }
+}
+
+void CheckOutputFolderWritable(const std::string& option, const std::string& folder_path) {
+  namespace fs = std::filesystem;
+  if (folder_path.empty()) return;
+  std::error_code error;
+  fs::path folder = fs::absolute(folder_path).lexically_normal();
+  if (fs::exists(folder, error) && !fs::is_directory(folder, error)) {
+    throw std::invalid_argument(option + " '" + folder_path + "' is a file, not a folder");
+  }
+  // The nearest existing ancestor must be writable (the command creates the rest).
+  while (!fs::exists(folder, error) && folder.has_parent_path() && folder != folder.parent_path()) {
+    folder = folder.parent_path();
+  }
+  if (!fs::is_directory(folder, error) || ::access(folder.c_str(), W_OK | X_OK) != 0) {
+    throw std::invalid_argument(option + " '" + folder_path + "': folder '" + folder.string() +
+                                "' is not writable");
+  }
 }
 
 }  // namespace hnnstereo::app

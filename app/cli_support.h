@@ -5,6 +5,8 @@
 #include <CLI/CLI.hpp>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "host/opencl_runtime.h"
 #include "vision/matcher_presets.h"
@@ -49,8 +51,20 @@ struct MatcherFlags {
   void UseFeatureNetworkUnlessRectified(bool rectified);
 };
 
-/// The OpenCL runtime for `engine` == opencl (nullptr otherwise or when none exists, with a
-/// notice on stderr).
+/// The OpenCL runtime for `engine` == opencl; nullptr for the other engines, or when no OpenCL
+/// device exists and none was asked for (the matcher then runs the cpu engine and says so).
+/// Throws std::invalid_argument, listing the devices that exist, when `device` (--device) or
+/// HNNSTEREO_OPENCL_DEVICE / HNNSTEREO_OPENCL_PLATFORM names a device that does not exist.
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device);
+
+/// Checks, before any work, that every output file can be written: its folder exists and takes
+/// a new file (the atomic write's temporary), the path is not a folder, not read-only, and no two
+/// outputs are the same file. `outputs` holds (option name, path) pairs; empty paths are skipped.
+/// Throws std::invalid_argument naming the option and the path.
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs);
+
+/// Checks that `folder_path` (an output folder the command creates if needed) is not a file and
+/// that its nearest existing ancestor is writable. Throws std::invalid_argument naming `option`.
+void CheckOutputFolderWritable(const std::string& option, const std::string& folder_path);
 
 }  // namespace hnnstereo::app

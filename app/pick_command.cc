@@ -32,18 +32,32 @@ void RunPick(PickArgs& args) {
   if (!args.link.frame.empty() && args.link.robot.empty()) {
     throw std::invalid_argument("--frame is used with --robot URI (the link to send the picks to)");
   }
-  // Open the link (and read FRAME.yml) before the slow part, so a bad URI or frame fails fast.
+  // The whole setup is checked before the slow part: outputs, device, calibration, the link
+  // (and FRAME.yml); SenseCellPair checks the pair before matching.
+  CheckOutputsWritable({{"--out", args.out},
+                        {"--overlay", args.overlay},
+                        {"--ply", args.ply},
+                        {"--histogram", args.histogram},
+                        {"--energy-plot", args.energy_plot}});
+  std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
   robot::RobotFrame frame;
   std::unique_ptr<robot::RobotLink> link;
   if (!args.link.robot.empty()) link = args.link.Open(&frame);
-  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
-  std::unique_ptr<ocl::Runtime> runtime =
-      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
   const SensedPair pair =
       SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
   const vision::PositionSensingReport& report = pair.report;
   const cv::Mat& left_grey = pair.left_grey;
   const vision::LoadedImage& left = pair.left;
+  const auto& counts = report.triangulation;
+  if (report.objects.empty() && counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) {
+    // Swapped cameras put the triangulated points behind them: say so instead of "0 parts".
+    throw std::runtime_error("no parts: " + std::to_string(counts.behind_camera) + " of " +
+                             std::to_string(counts.behind_camera + counts.accepted) +
+                             " triangulated points lie behind the cameras - are --left and "
+                             "--right swapped?");
+  }
 
   // Everything is computed before anything is written; each file is written atomically.
   nlohmann::json json = vision::ObjectsJson(report, args.cell.sensing);
