@@ -23,7 +23,10 @@ std::string Trim(const std::string& text) {
 
 }  // namespace
 
-std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& arguments) {
+std::vector<std::string> ExpandConfigArguments(
+    const std::vector<std::string>& arguments,
+    const std::function<bool(const std::string&)>& known_option,
+    std::map<std::string, std::string>* origins) {
   std::vector<std::string> rest;
   std::string config_path;
   for (std::size_t t = 0; t < arguments.size(); ++t) {
@@ -37,7 +40,7 @@ std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& a
   }
   if (config_path.empty()) return arguments;
   std::ifstream input(config_path);
-  if (!input) throw std::runtime_error("config file '" + config_path + "' cannot be read");
+  if (!input) throw std::invalid_argument("--config file '" + config_path + "' cannot be read");
   auto given = [&](const std::string& option) {
     for (const std::string& argument : rest) {
       if (argument == option || argument.rfind(option + "=", 0) == 0) return true;
@@ -55,14 +58,20 @@ std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& a
     if (trimmed.empty() || trimmed == "---" || trimmed.rfind("%YAML", 0) == 0) continue;
     const auto colon = trimmed.find(':');
     if (colon == std::string::npos) {
-      throw std::runtime_error("config file '" + config_path + "' line " + std::to_string(number) +
-                               " is not 'key: value'");
+      throw std::invalid_argument("config file '" + config_path + "' line " +
+                                  std::to_string(number) + " is not 'key: value'");
     }
     std::string key = Trim(trimmed.substr(0, colon));
     for (char& c : key) {
       if (c == '_') c = '-';
     }
     const std::string option = "--" + key;
+    const std::string where =
+        "config file '" + config_path + "' line " + std::to_string(number) + ", key '" + key + "'";
+    if (key.empty() || key == "config" || (known_option && !known_option(option))) {
+      throw std::invalid_argument(where + ": not an option of this command");
+    }
+    if (origins) (*origins)[option] = where;
     std::string value = Trim(trimmed.substr(colon + 1));
     if (given(option)) continue;
     if (value == "true" || value == "yes" || value == "on") {

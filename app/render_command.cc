@@ -4,6 +4,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "vision/scene_render.h"
 
@@ -18,6 +19,7 @@ struct RenderArgs {
 
 void RunRender(RenderArgs& args) {
   const auto start = std::chrono::steady_clock::now();
+  CheckOutputFolderWritable("--out", args.out);  // before the seconds of ray casting
   // Everything is rendered before anything is written.
   const vision::RenderedScene scene = vision::RenderScene(args.options);
   const vision::RenderedTarget target = vision::RenderTargetPlacements(scene.cameras, args.options);
