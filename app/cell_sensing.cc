@@ -43,6 +43,7 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();
+  flags.unrectified_cell = true;
   flags.AddTo(cmd);
 }
 

@@ -21,6 +21,13 @@ std::string Trim(const std::string& text) {
   return text.substr(first, last - first + 1);
 }
 
+// A number as the help shows it: 12, 0.5.
+std::string FormatDefault(double value) {
+  std::ostringstream text;
+  text << value;
+  return text.str();
+}
+
 }  // namespace
 
 std::vector<std::string> ExpandConfigArguments(
@@ -117,16 +124,27 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
                   "Largest distance (px) of a candidate from its epipolar line")
       ->capture_default_str();
+  // The defaults shown are the ones that run: those of the default preset (hnn-default), which
+  // --preset replaces (tests/app/docs_defaults_test.cc checks them against REPORT.json).
+  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback, hnn-geometry-lr.
+  const vision::MatcherPreset shown = unrectified_cell
+                                          ? vision::FindPreset("hnn-geometry-lr").value()
+                                          : vision::AccurateDefaultPreset();
   top_k_option = cmd->add_option("--top-k", o.candidates.top_k,
                                  "Keep the K best-correlated candidates per left feature (0 = all; "
-                                 "default from the preset)");
+                                 "default: the preset's)")
+                     ->default_str(std::to_string(shown.matcher.candidates.top_k));
   cmd->add_flag("--dense", o.candidates.dense,
                 "The thesis's all-pairs network: every left x right pair is a neuron and every "
                 "neuron is connected to every other (O((N_L N_R)^2) memory)");
   network_option = cmd->add_option(
       "--network", network,
       "feature (rows = left features, columns = right features) or disparity (columns = "
-      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default from the preset");
+      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default: the preset's; "
+      "hnn-default falls back to feature on calibrated, unrectified pairs")
+      ->default_str(shown.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
+                        ? "disparity"
+                        : "feature");
   cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
       ->capture_default_str();
   cmd->add_option("--engine", engine,
@@ -144,15 +162,17 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->capture_default_str();
   objective_option =
       cmd->add_option("--objective", objective,
-                      "Compatibility (overrides the preset): thesis (eq. 6.6-6.8), printed0, "
-                      "printed1, printed2, geometry-similarity")
-          ->capture_default_str();
+                      "Compatibility (overrides the preset's: hnn-default geometry-similarity, "
+                      "hnn-thesis thesis): thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
+                      "geometry-similarity")
+          ->default_str(std::string(hnn::ObjectiveName(shown.matcher.energy.objective)));
   cmd->add_flag("--no-lr-check", no_left_right_check,
                 "Skip the preset's left-right consistency check");
   support_radius_option = cmd->add_option(
       "--support-radius", o.energy.support_radius_px,
-      "Sparse networks: connect neurons whose left features are within this many px (default "
-      "from the preset)");
+      "Sparse networks: connect neurons whose left features are within this many px (default: "
+      "the preset's)")
+      ->default_str(FormatDefault(shown.matcher.energy.support_radius_px));
   cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
   cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
   cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();

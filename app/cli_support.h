@@ -48,6 +48,9 @@ struct MatcherFlags {
   std::string zrange;
   double memory_budget_mb = 2048.0;
   std::string device;
+  /// Set before AddTo for commands on calibrated, unrectified cells (pick, serve): the help then
+  /// shows the defaults that run there (the feature network of hnn-geometry-lr).
+  bool unrectified_cell = false;
   /// Adds the flags to `cmd`.
   void AddTo(CLI::App* cmd);
   /// Parses the string-valued flags into `options` and applies the preset (its objective unless

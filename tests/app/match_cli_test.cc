@@ -94,7 +94,7 @@ TEST_F(MatchCli, DifferentImageSizes) {
 
 TEST_F(MatchCli, NoFeatures) {
   cv::imwrite(Path("input_flat_l.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
-  cv::imwrite(Path("input_flat_r.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
+  cv::imwrite(Path("input_flat_r.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(81)));
   ExpectCleanFailure(RunCli("match --left " + Path("input_flat_l.png") + " --right " +
                          Path("input_flat_r.png") + " --rectified --out " + Path("m.csv")),
                      "no features");
