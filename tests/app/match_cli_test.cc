@@ -60,7 +60,7 @@ TEST_F(MatchCli, WritesTheContractFiles) {
   EXPECT_LT(report["energy_final"].get<double>(), report["energy_initial"].get<double>());
   const cv::Mat overlay = cv::imread(Path("o.png"));
   EXPECT_EQ(overlay.cols, 900);
-  EXPECT_EQ(overlay.rows, 375);
+  EXPECT_EQ(overlay.rows, 375 + 56) << "the images, then the legend";
 }
 
 TEST_F(MatchCli, HelpTeachesTheOptions) {
