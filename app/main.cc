@@ -49,6 +49,14 @@ void AddQuietEverywhere(CLI::App* app) {
   }
 }
 
+// The direct subcommand of `app` called `name`, or nullptr.
+CLI::App* FindSubcommand(CLI::App& app, const std::string& name) {
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+    if (sub->get_name() == name) return sub;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,7 +92,7 @@ int main(int argc, char** argv) {
     arguments = hnnstereo::app::ExpandConfigArguments(
         arguments,
         [&](const std::string& option) {
-          const CLI::App* sub = app.get_subcommand_no_throw(arguments[1]);
+          const CLI::App* sub = FindSubcommand(app, arguments[1]);
           return sub != nullptr && sub->get_option_no_throw(option) != nullptr;
         },
         &config_origins);
@@ -100,7 +108,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);
     const std::string& first = arguments.size() > 1 ? arguments[1] : std::string();
-    if (app.get_subcommand_no_throw(first) == nullptr) {
+    if (FindSubcommand(app, first) == nullptr) {
       std::cerr << "hnnstereo: error: unknown command '" << first << "'\n" << app.help();
       return kUsageError;
     }

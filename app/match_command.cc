@@ -32,9 +32,8 @@ void RunMatch(MatchArgs& args) {
   args.flags.Resolve();
   vision::MatcherOptions& options = args.flags.options;
   // The whole setup is checked before any work (each check is milliseconds): the outputs, the
-  // device, the pair, the disparity range.
+  // pair, the disparity range, the device.
   CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay}});
-  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
   const vision::LoadedImage left = vision::LoadImage(args.left);
   const vision::LoadedImage right = vision::LoadImage(args.right);
   vision::CheckSameSize(left, right);
@@ -49,7 +48,14 @@ void RunMatch(MatchArgs& args) {
     if (calibration->rectified) options.candidates.rectified = true;
   } else if (args.rectified) {
     options.candidates.rectified = true;
-  } else {
+  }
+  if (options.candidates.rectified && !options.candidates.dense) {
+    const std::string problem = vision::DisparityRangeProblem(
+        options.candidates.min_disparity, options.candidates.max_disparity, left.grey.cols);
+    if (!problem.empty()) throw std::invalid_argument(problem);
+  }
+  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
+  if (!calibration && !args.rectified) {
     // Neither: estimate F from confident correlation matches, then match with the soft
     // epipolar term (projective cameras; no heights).
     // (The pair was checked above: one image twice would "estimate" F from perfect matches.)
@@ -64,11 +70,6 @@ void RunMatch(MatchArgs& args) {
   }
   args.flags.UseFeatureNetworkUnlessRectified(options.candidates.rectified);
   if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
-  if (options.candidates.rectified && !options.candidates.dense) {
-    const std::string problem = vision::DisparityRangeProblem(
-        options.candidates.min_disparity, options.candidates.max_disparity, left.grey.cols);
-    if (!problem.empty()) throw std::invalid_argument(problem);
-  }
   if (options.candidates.rectified && comparison.looks_swapped) {
     std::cerr << "hnnstereo: warning: --left and --right look swapped: "
               << static_cast<int>(100.0 * comparison.negative_shift_fraction + 0.5)

@@ -34,12 +34,12 @@ std::map<std::string, std::string> DocumentedDefaults(const std::string& path,
   return rows;
 }
 
-// The default `match --help` shows for `option` ("[VALUE]" after the option's name and type).
+// The default `match --help` shows for `option` ("--top-k INT=4").
 std::string HelpDefault(const std::string& help, const std::string& option) {
   std::istringstream in(help);
   std::string line;
-  const std::regex shown("^\\s+" + std::regex_replace(option, std::regex("-"), "\\-") +
-                         R"(\s+\S+\s+\[([^\]]*)\])");
+  const std::regex shown("^\\s+" + option +
+                         R"(\s+[A-Z]+=(\S+))");
   while (std::getline(in, line)) {
     std::smatch m;
     if (std::regex_search(line, m, shown)) return m[1];
