@@ -47,8 +47,8 @@ class SetupCli : public ::testing::Test {
     const auto cpu = [] {
       rusage usage{};
       getrusage(RUSAGE_CHILDREN, &usage);
-      return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec +
-             1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+      return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+             1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
     };
     const double before = cpu();
     CliResult result = RunCli(arguments, env);
@@ -138,13 +138,13 @@ TEST_F(SetupCli, ServePublishesASensingErrorAndSendsNothingForOneImageTwice) {
 
 TEST_F(SetupCli, SwappedRectifiedPairIsSaid) {
   const CliResult result = RunCli("match --left " + kRight + " --right " + kLeft +
-                                  " --rectified --engine cpu --quiet --out " + Path("m.csv"));
+                                  " --rectified --engine cpu --max-features 1500 --quiet --out " + Path("m.csv"));
   EXPECT_EQ(result.exit_code, 0) << result.output;
   EXPECT_NE(result.output.find("hnnstereo: warning: --left and --right look swapped"),
             std::string::npos)
       << result.output;
   const CliResult straight = RunCli("match --left " + kLeft + " --right " + kRight +
-                                    " --rectified --engine cpu --quiet --out " + Path("m2.csv"));
+                                    " --rectified --engine cpu --max-features 1500 --quiet --out " + Path("m2.csv"));
   EXPECT_EQ(straight.exit_code, 0) << straight.output;
   EXPECT_EQ(straight.output.find("swapped"), std::string::npos) << straight.output;
 }
@@ -229,7 +229,9 @@ TEST_F(SetupCli, ArgumentErrorsAreOneLineWithThePrefix) {
   ExpectRefused(RunCli("match --left " + kLeft + " --right " + kRight + " --out " + Path("m.csv") +
                        " --max-disparity lots"),
                 2, "--max-disparity");
-  ExpectRefused(RunCli("match --no-such-option"), 2, "--no-such-option");
+  ExpectRefused(RunCli("match --left " + kLeft + " --right " + kRight + " --out " + Path("m.csv") +
+                       " --no-such-option"),
+                2, "--no-such-option");
 }
 
 TEST_F(SetupCli, ConfigFileErrorsNameTheFileAndTheKey) {
