@@ -74,8 +74,6 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
   pair.left = vision::LoadImage(left_path);
   pair.right = vision::LoadImage(right_path);
   vision::CheckSameSize(pair.left, pair.right);
-  // Named after the options here; SensePositions checks again for library callers.
-  vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");
   if (calibration.image_width > 0 && (calibration.image_width != pair.left.grey.cols ||
                                       calibration.image_height != pair.left.grey.rows)) {
     throw std::invalid_argument("calibration '" + calibration_name + "' is for " +
@@ -84,6 +82,8 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
                                 std::to_string(pair.left.grey.cols) + "x" +
                                 std::to_string(pair.left.grey.rows));
   }
+  // Named after the options here; SensePositions checks again for library callers.
+  vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");
   // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
   // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
   pair.left_grey = pair.left.grey;

@@ -124,6 +124,12 @@ void RunPick(PickArgs& args) {
               "points");
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
+    // A round part's yaw is free: it is sent as 0.
+    if (pose.round) {
+      std::printf("%3d %9.1f %9.1f %9.1f %8s %7s %7d\n", id++, pose.centroid.x(),
+                  pose.centroid.y(), pose.height_mm, "round", "-", pose.points);
+      continue;
+    }
     std::printf("%3d %9.1f %9.1f %9.1f %8.1f %7.1f %7d\n", id++, pose.centroid.x(),
                 pose.centroid.y(), pose.height_mm, pose.yaw_deg, pose.yaw_moments_deg, pose.points);
   }

@@ -105,9 +105,9 @@ cv::Mat DrawMatchOverlay(const cv::Mat& left, const cv::Mat& right, const MatchR
            " left / " + std::to_string(report.n_right) + " right features",
        {text_x, top + 18});
   Text(canvas,
-       "engine " + report.solve.engine + " on " + report.solve.device + ", " +
-           Fixed(report.timing_ms.total, 0) + " ms",
-       {text_x, top + 38});
+       "engine " + report.solve.engine + ", " + Fixed(report.timing_ms.total, 0) + " ms, on " +
+           report.solve.device,
+       {text_x, top + 38}, 0.4);
   return canvas;
 }
 

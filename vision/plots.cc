@@ -45,7 +45,7 @@ cv::Rect DrawAxes(cv::Mat& canvas, const std::string& title, const std::string& 
   cv::putText(canvas, title, {kMarginLeft, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
   cv::putText(canvas, x_label, {area.x + area.width / 2 - 60, kPlotHeight - 10},
               cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
-  cv::putText(canvas, y_label, {6, kMarginTop - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1,
+  cv::putText(canvas, y_label, {6, kMarginTop - 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1,
               cv::LINE_AA);
   auto x_of = [&](double x) {
     const double f = log_x ? std::log10(1.0 + x - x_min) / std::log10(1.0 + x_max - x_min)
