@@ -15,6 +15,7 @@
 #include "vision/plots.h"
 #include "vision/ply.h"
 #include "vision/position_sensing.h"
+#include "vision/setup_checks.h"
 
 namespace hnnstereo::app {
 namespace {
@@ -50,13 +51,22 @@ void RunPick(PickArgs& args) {
   const vision::PositionSensingReport& report = pair.report;
   const cv::Mat& left_grey = pair.left_grey;
   const vision::LoadedImage& left = pair.left;
-  const auto& counts = report.triangulation;
-  if (report.objects.empty() && counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) {
-    // Swapped cameras put the triangulated points behind them: say so instead of "0 parts".
-    throw std::runtime_error("no parts: " + std::to_string(counts.behind_camera) + " of " +
-                             std::to_string(counts.behind_camera + counts.accepted) +
-                             " triangulated points lie behind the cameras - are --left and "
-                             "--right swapped?");
+  if (report.objects.empty()) {
+    // No part: were the images given the wrong way round? Swapped cameras put the triangulated
+    // points behind them, or the images correlate far better the other way round.
+    const auto& counts = report.triangulation;
+    const std::pair<double, double> z_range =
+        args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
+    const vision::SwapComparison swap =
+        vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+    if ((counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) || swap.looks_swapped) {
+      throw std::runtime_error(
+          "no parts, and --left and --right look swapped: " + std::to_string(counts.behind_camera) +
+          " of " + std::to_string(counts.behind_camera + counts.accepted) +
+          " triangulated points behind the cameras; median ZNCC along the epipolar lines " +
+          std::to_string(swap.as_given_zncc).substr(0, 4) + " as given, " +
+          std::to_string(swap.swapped_zncc).substr(0, 4) + " swapped");
+    }
   }
 
   // Everything is computed before anything is written; each file is written atomically.

@@ -149,6 +149,19 @@ TEST_F(SetupCli, SwappedRectifiedPairIsSaid) {
   EXPECT_EQ(straight.output.find("swapped"), std::string::npos) << straight.output;
 }
 
+// A cell pair given right-left found no part and said nothing; now it says why.
+TEST_F(SetupCli, PickSaysWhenTheImagesLookSwapped) {
+  ASSERT_EQ(render_.exit_code, 0) << render_.output;
+  const CliResult result = RunCli("pick --left " + Scene("right.png") + " --right " +
+                                  Scene("left.png") + " --calib " + Scene("calib.yml") +
+                                  " --out " + Path("o.json"));
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("hnnstereo: error: no parts, and --left and --right look swapped"),
+            std::string::npos)
+      << result.output;
+  EXPECT_FALSE(fs::exists(Path("o.json")));
+}
+
 TEST_F(SetupCli, DisparityBeyondTheImageWidthIsRefusedAtOnce) {
   for (const std::string range : {"--max-disparity 1e9", "--max-disparity 1e6",
                                   "--max-disparity 450", "--min-disparity -1e9"}) {

@@ -105,6 +105,21 @@ TEST(SetupChecks, RenderedCellPairsAreTwoViewsAndTheirCopiesAreNot) {
   }
 }
 
+// A calibrated cell pair correlates along its epipolar segments as given, not swapped.
+TEST(SetupChecks, SwappedCellPairCorrelatesTheOtherWayRound) {
+  SceneRenderOptions options;
+  options.seed = 7;
+  const RenderedScene scene = RenderScene(options);
+  const SwapComparison given = CompareWithSwappedCameras(scene.left, scene.right, scene.cameras, {-5, 200});
+  std::printf("cell seed 7 as given: %d points, ZNCC %.2f as given, %.2f swapped\n", given.points,
+              given.as_given_zncc, given.swapped_zncc);
+  EXPECT_FALSE(given.looks_swapped);
+  const SwapComparison swapped = CompareWithSwappedCameras(scene.right, scene.left, scene.cameras, {-5, 200});
+  std::printf("cell seed 7 swapped: %d points, ZNCC %.2f as given, %.2f swapped\n", swapped.points,
+              swapped.as_given_zncc, swapped.swapped_zncc);
+  EXPECT_TRUE(swapped.looks_swapped);
+}
+
 TEST(SetupChecks, FlatImagesAbstainUnlessIdentical) {
   const cv::Mat flat(100, 120, CV_8U, cv::Scalar(90));
   EXPECT_TRUE(ComparePair(flat, flat).near_identical);  // the same pixels
