@@ -19,7 +19,7 @@ namespace {
 constexpr const char* kCalibrateHelp =
     R"(Stereo calibration: writes CAL.yml (OpenCV YAML: P1, P2, F, C1, C2, error figures).
 
-Three ways:
+Examples, the three ways:
   calibrate --target circles --dir TARGET_DIR --out CAL.yml [--report CALIB.json]
       The thesis's circle plate (rows x cols circles, default 3 x 3, 25 mm pitch) photographed by
       both cameras at two or more known heights. TARGET_DIR/target.yml (OpenCV YAML):

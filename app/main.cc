@@ -49,6 +49,21 @@ void AddQuietEverywhere(CLI::App* app) {
   }
 }
 
+// Help laid out the same way everywhere: description, usage, options, then the examples. A
+// description that carries its examples ("...\nExample...") gives them to the footer.
+void ExamplesAfterOptions(CLI::App* app) {
+  for (CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) {
+    const std::string description = sub->get_description();
+    const auto example = description.find("\nExample");
+    if (example != std::string::npos) {
+      const std::string footer = sub->get_footer();
+      sub->description(description.substr(0, example));
+      sub->footer(description.substr(example + 1) + (footer.empty() ? "" : "\n" + footer));
+    }
+    ExamplesAfterOptions(sub);
+  }
+}
+
 // The direct subcommand of `app` called `name`, or nullptr.
 CLI::App* FindSubcommand(CLI::App& app, const std::string& name) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
@@ -80,6 +95,7 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddProbeCommand(app);
   hnnstereo::app::AddDevicesCommand(app);
   AddQuietEverywhere(&app);
+  ExamplesAfterOptions(&app);
 
   std::vector<std::string> arguments(argv, argv + argc);
   if (arguments.size() == 1) {

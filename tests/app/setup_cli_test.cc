@@ -261,6 +261,22 @@ TEST_F(SetupCli, ConfigFileErrorsNameTheFileAndTheKey) {
                 2, "--config file '" + Path("input_none.yml") + "' cannot be read");
 }
 
+// Description, usage naming the program, options, then examples - the same for every command.
+TEST_F(SetupCli, HelpIsLaidOutTheSameWayEverywhere) {
+  for (const std::string command :
+       {"match", "calibrate", "render", "pick", "serve", "demo", "probe", "devices"}) {
+    const std::string help = RunCli(command + " --help").output;
+    const auto usage = help.find("Usage: hnnstereo " + command);
+    const auto options = help.find("Options:");
+    ASSERT_NE(usage, std::string::npos) << command << help;
+    EXPECT_GT(usage, 0u) << command << ": the description comes first";
+    EXPECT_LT(usage, options) << command;
+    const auto example = help.find("Example");
+    EXPECT_NE(example, std::string::npos) << command << ": no example";
+    EXPECT_GT(example, options) << command << ": the examples follow the options";
+  }
+}
+
 TEST_F(SetupCli, EveryCommandTakesQuiet) {
   const CliResult help = RunCli("--help");
   for (const std::string command :
