@@ -326,7 +326,8 @@ std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::
                               "runs without OpenCL)");
 }
 
-void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs) {
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
+                          const std::vector<std::pair<std::string, std::string>>& inputs) {
   namespace fs = std::filesystem;
   std::set<fs::path> seen;
   for (const auto& [option, path] : outputs) {
@@ -336,6 +337,14 @@ void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>
       throw std::invalid_argument(option + " '" + path + "' is also another output of this command");
     }
     std::error_code error;
+    for (const auto& [input_option, input_path] : inputs) {
+      if (input_path.empty()) continue;
+      if (fs::absolute(input_path).lexically_normal() == target ||
+          fs::equivalent(input_path, target, error)) {
+        throw std::invalid_argument(option + " '" + path + "' would overwrite the input " +
+                                    input_option);
+      }
+    }
     if (fs::is_directory(target, error)) {
       throw std::invalid_argument(option + " '" + path + "' is a folder, not a file");
     }

@@ -70,9 +70,11 @@ std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::
 
 /// Checks, before any work, that every output file can be written: its folder exists and takes
 /// a new file (the atomic write's temporary), the path is not a folder, not read-only, and no two
-/// outputs are the same file. `outputs` holds (option name, path) pairs; empty paths are skipped.
+/// outputs are the same file, and none is one of `inputs` (an overlay written over the left
+/// image). Both hold (option name, path) pairs; empty paths are skipped.
 /// Throws std::invalid_argument naming the option and the path.
-void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs);
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
+                          const std::vector<std::pair<std::string, std::string>>& inputs = {});
 
 /// Checks that `folder_path` (an output folder the command creates if needed) is not a file and
 /// that its nearest existing ancestor is writable. Throws std::invalid_argument naming `option`.

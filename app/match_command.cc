@@ -33,7 +33,8 @@ void RunMatch(MatchArgs& args) {
   vision::MatcherOptions& options = args.flags.options;
   // The whole setup is checked before any work (each check is milliseconds): the outputs, the
   // pair, the disparity range, the device.
-  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay}});
+  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay}},
+                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
   const vision::LoadedImage left = vision::LoadImage(args.left);
   const vision::LoadedImage right = vision::LoadImage(args.right);
   vision::CheckSameSize(left, right);

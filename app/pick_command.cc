@@ -39,7 +39,8 @@ void RunPick(PickArgs& args) {
                         {"--overlay", args.overlay},
                         {"--ply", args.ply},
                         {"--histogram", args.histogram},
-                        {"--energy-plot", args.energy_plot}});
+                        {"--energy-plot", args.energy_plot}},
+                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
   std::unique_ptr<ocl::Runtime> runtime =
       OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
   const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);

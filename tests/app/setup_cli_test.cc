@@ -188,6 +188,8 @@ TEST_F(SetupCli, UnwritableOutputsAreRefusedBeforeWork) {
   ExpectRefused(RunCli(match + "--out " + dir_.string()), 2, "is a folder");
   ExpectRefused(RunCli(match + "--out " + Path("m.csv") + " --report " + Path("m.csv")), 2,
                 "also another output");
+  ExpectRefused(RunCli(match + "--out " + Path("m.csv") + " --overlay " + kLeft), 2,
+                "--overlay '" + kLeft + "' would overwrite the input --left");
   ASSERT_EQ(render_.exit_code, 0) << render_.output;
   ExpectRefused(RunCli("pick --left " + Scene("left.png") + " --right " + Scene("right.png") +
                        " --calib " + Scene("calib.yml") + " --out " + Path("o.json") + " --ply " +
