@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "calib/calibration_report.h"
 #include "calib/chessboard.h"
@@ -18,7 +19,7 @@ namespace {
 constexpr const char* kCalibrateHelp =
     R"(Stereo calibration: writes CAL.yml (OpenCV YAML: P1, P2, F, C1, C2, error figures).
 
-Three ways:
+Examples, the three ways:
   calibrate --target circles --dir TARGET_DIR --out CAL.yml [--report CALIB.json]
       The thesis's circle plate (rows x cols circles, default 3 x 3, 25 mm pitch) photographed by
       both cameras at two or more known heights. TARGET_DIR/target.yml (OpenCV YAML):
@@ -66,19 +67,21 @@ struct CalibrateArguments {
 };
 
 void RunCalibrate(const CalibrateArguments& args) {
+  // The outputs are checked before the (seconds of) detection and calibration.
+  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}});
   calib::DltOptions dlt_options;
   dlt_options.refine_nonlinear = !args.no_refine;
   calib::CalibrationResult result;
   if (!args.points_left.empty() || !args.points_right.empty()) {
     if (args.points_left.empty() || args.points_right.empty()) {
-      throw std::runtime_error("--points-left and --points-right go together");
+      throw std::invalid_argument("--points-left and --points-right go together");
     }
     if (!args.target.empty()) {
-      throw std::runtime_error("give either --points-left/--points-right or --target, not both");
+      throw std::invalid_argument("give either --points-left/--points-right or --target, not both");
     }
     result = calib::CalibrateFromKnownPoints(args.points_left, args.points_right, dlt_options);
   } else if (args.target == "circles") {
-    if (args.dir.empty()) throw std::runtime_error("--target circles needs --dir TARGET_DIR");
+    if (args.dir.empty()) throw std::invalid_argument("--target circles needs --dir TARGET_DIR");
     calib::CircleCalibrationOptions options;
     options.dlt = dlt_options;
     options.detection.threshold = args.threshold == "intermeans"
@@ -89,7 +92,7 @@ void RunCalibrate(const CalibrateArguments& args) {
   } else if (args.target == "chessboard") {
     calib::ChessboardOptions options;
     if (args.rows <= 0 || args.cols <= 0) {
-      throw std::runtime_error("--target chessboard needs --rows and --cols (inner corners)");
+      throw std::invalid_argument("--target chessboard needs --rows and --cols (inner corners)");
     }
     options.rows = args.rows;
     options.cols = args.cols;
@@ -98,7 +101,7 @@ void RunCalibrate(const CalibrateArguments& args) {
     options.right_images = args.right_images;
     result = calib::CalibrateChessboard(options);
   } else {
-    throw std::runtime_error(
+    throw std::invalid_argument(
         "say what to calibrate from: --target circles|chessboard, or --points-left/--points-right");
   }
   const std::vector<std::string> written =

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "vision/lens_distortion.h"
+#include "vision/setup_checks.h"
 
 namespace hnnstereo::app {
 
@@ -42,6 +43,7 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();
+  flags.unrectified_cell = true;
   flags.AddTo(cmd);
 }
 
@@ -80,6 +82,8 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
                                 std::to_string(pair.left.grey.cols) + "x" +
                                 std::to_string(pair.left.grey.rows));
   }
+  // Named after the options here; SensePositions checks again for library callers.
+  vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");
   // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
   // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
   pair.left_grey = pair.left.grey;
@@ -99,7 +103,8 @@ std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingRe
   std::vector<robot::SensedObject> objects;
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
-    objects.push_back({id++, pose.centroid, pose.height_mm, pose.yaw_deg});
+    // A round part has no orientation: yaw 0 is sent (no needless wrist turn).
+    objects.push_back({id++, pose.centroid, pose.height_mm, pose.round ? 0.0 : pose.yaw_deg});
   }
   return objects;
 }

@@ -1,8 +1,12 @@
 #include "app/cli_support.h"
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <set>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -17,9 +21,19 @@ std::string Trim(const std::string& text) {
   return text.substr(first, last - first + 1);
 }
 
+// A number as the help shows it: 12, 0.5.
+std::string FormatDefault(double value) {
+  std::ostringstream text;
+  text << value;
+  return text.str();
+}
+
 }  // namespace
 
-std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& arguments) {
+std::vector<std::string> ExpandConfigArguments(
+    const std::vector<std::string>& arguments,
+    const std::function<bool(const std::string&)>& known_option,
+    std::map<std::string, std::string>* origins) {
   std::vector<std::string> rest;
   std::string config_path;
   for (std::size_t t = 0; t < arguments.size(); ++t) {
@@ -33,7 +47,7 @@ std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& a
   }
   if (config_path.empty()) return arguments;
   std::ifstream input(config_path);
-  if (!input) throw std::runtime_error("config file '" + config_path + "' cannot be read");
+  if (!input) throw std::invalid_argument("--config file '" + config_path + "' cannot be read");
   auto given = [&](const std::string& option) {
     for (const std::string& argument : rest) {
       if (argument == option || argument.rfind(option + "=", 0) == 0) return true;
@@ -51,14 +65,20 @@ std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& a
     if (trimmed.empty() || trimmed == "---" || trimmed.rfind("%YAML", 0) == 0) continue;
     const auto colon = trimmed.find(':');
     if (colon == std::string::npos) {
-      throw std::runtime_error("config file '" + config_path + "' line " + std::to_string(number) +
-                               " is not 'key: value'");
+      throw std::invalid_argument("config file '" + config_path + "' line " +
+                                  std::to_string(number) + " is not 'key: value'");
     }
     std::string key = Trim(trimmed.substr(0, colon));
     for (char& c : key) {
       if (c == '_') c = '-';
     }
     const std::string option = "--" + key;
+    const std::string where =
+        "config file '" + config_path + "' line " + std::to_string(number) + ", key '" + key + "'";
+    if (key.empty() || key == "config" || (known_option && !known_option(option))) {
+      throw std::invalid_argument(where + ": not an option of this command");
+    }
+    if (origins) (*origins)[option] = where;
     std::string value = Trim(trimmed.substr(colon + 1));
     if (given(option)) continue;
     if (value == "true" || value == "yes" || value == "on") {
@@ -104,16 +124,27 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
                   "Largest distance (px) of a candidate from its epipolar line")
       ->capture_default_str();
+  // The defaults shown are the ones that run: those of the default preset (hnn-default), which
+  // --preset replaces (tests/app/docs_defaults_test.cc checks them against REPORT.json).
+  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback, hnn-geometry-lr.
+  const vision::MatcherPreset shown = unrectified_cell
+                                          ? vision::FindPreset("hnn-geometry-lr").value()
+                                          : vision::AccurateDefaultPreset();
   top_k_option = cmd->add_option("--top-k", o.candidates.top_k,
                                  "Keep the K best-correlated candidates per left feature (0 = all; "
-                                 "default from the preset)");
+                                 "default: the preset's)")
+                     ->default_str(std::to_string(shown.matcher.candidates.top_k));
   cmd->add_flag("--dense", o.candidates.dense,
                 "The thesis's all-pairs network: every left x right pair is a neuron and every "
                 "neuron is connected to every other (O((N_L N_R)^2) memory)");
   network_option = cmd->add_option(
       "--network", network,
       "feature (rows = left features, columns = right features) or disparity (columns = "
-      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default from the preset");
+      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default: the preset's; "
+      "hnn-default falls back to feature on calibrated, unrectified pairs")
+      ->default_str(shown.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
+                        ? "disparity"
+                        : "feature");
   cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
       ->capture_default_str();
   cmd->add_option("--engine", engine,
@@ -131,15 +162,17 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->capture_default_str();
   objective_option =
       cmd->add_option("--objective", objective,
-                      "Compatibility (overrides the preset): thesis (eq. 6.6-6.8), printed0, "
-                      "printed1, printed2, geometry-similarity")
-          ->capture_default_str();
+                      "Compatibility (overrides the preset's: hnn-default geometry-similarity, "
+                      "hnn-thesis thesis): thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
+                      "geometry-similarity")
+          ->default_str(std::string(hnn::ObjectiveName(shown.matcher.energy.objective)));
   cmd->add_flag("--no-lr-check", no_left_right_check,
                 "Skip the preset's left-right consistency check");
   support_radius_option = cmd->add_option(
       "--support-radius", o.energy.support_radius_px,
-      "Sparse networks: connect neurons whose left features are within this many px (default "
-      "from the preset)");
+      "Sparse networks: connect neurons whose left features are within this many px (default: "
+      "the preset's)")
+      ->default_str(FormatDefault(shown.matcher.energy.support_radius_px));
   cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
   cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
   cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
@@ -302,12 +335,91 @@ void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {
 
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {
   if (engine != hnn::EngineKind::kOpenCL) return nullptr;
-  ocl::DeviceSelection selection = ocl::DeviceSelection::FromEnvironment();
+  const ocl::DeviceSelection from_environment = ocl::DeviceSelection::FromEnvironment();
+  ocl::DeviceSelection selection = from_environment;
   if (!device.empty()) selection.device = device;
   std::string why_not;
   auto runtime = ocl::Runtime::Create(selection, &why_not);
-  if (!runtime) std::cerr << "hnnstereo: notice: " << why_not << "; using the cpu engine\n";
-  return runtime;
+  if (runtime) return runtime;
+  if (selection.empty()) {
+    // Nothing was asked for: the cpu engine runs the same dynamics (the matcher says so).
+    return nullptr;
+  }
+  // A device that was asked for and does not exist is an error, never a silent fallback.
+  std::string asked;
+  if (!device.empty()) {
+    asked = "--device '" + device + "'";
+  } else if (!from_environment.device.empty()) {
+    asked = "HNNSTEREO_OPENCL_DEVICE='" + from_environment.device + "'";
+  }
+  if (!from_environment.platform.empty()) {
+    asked += std::string(asked.empty() ? "" : " with ") + "HNNSTEREO_OPENCL_PLATFORM='" +
+             from_environment.platform + "'";
+  }
+  throw std::invalid_argument(asked + ": " + why_not + " (see 'hnnstereo devices'; --engine cpu "
+                              "runs without OpenCL)");
+}
+
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
+                          const std::vector<std::pair<std::string, std::string>>& inputs) {
+  namespace fs = std::filesystem;
+  std::set<fs::path> seen;
+  for (const auto& [option, path] : outputs) {
+    if (path.empty()) continue;
+    const fs::path target = fs::absolute(path).lexically_normal();
+    if (!seen.insert(target).second) {
+      throw std::invalid_argument(option + " '" + path + "' is also another output of this command");
+    }
+    std::error_code error;
+    for (const auto& [input_option, input_path] : inputs) {
+      if (input_path.empty()) continue;
+      if (fs::absolute(input_path).lexically_normal() == target ||
+          fs::equivalent(input_path, target, error)) {
+        throw std::invalid_argument(option + " '" + path + "' would overwrite the input " +
+                                    input_option);
+      }
+    }
+    if (fs::is_directory(target, error)) {
+      throw std::invalid_argument(option + " '" + path + "' is a folder, not a file");
+    }
+    const fs::path folder = target.parent_path();
+    if (!fs::is_directory(folder, error)) {
+      throw std::invalid_argument(option + " '" + path + "': folder '" + folder.string() +
+                                  "' does not exist");
+    }
+    // Try what the atomic write will do: create a temporary file beside the target.
+    const fs::path probe =
+        folder / (".hnnstereo-write-test-" + std::to_string(static_cast<long>(::getpid())));
+    {
+      std::ofstream out(probe);
+      if (!out) {
+        throw std::invalid_argument(option + " '" + path + "': folder '" + folder.string() +
+                                    "' is not writable");
+      }
+    }
+    fs::remove(probe, error);
+    if (fs::exists(target, error) && ::access(target.c_str(), W_OK) != 0) {
+      throw std::invalid_argument(option + " '" + path + "' exists and is not writable");
+    }
+  }
+}
+
+void CheckOutputFolderWritable(const std::string& option, const std::string& folder_path) {
+  namespace fs = std::filesystem;
+  if (folder_path.empty()) return;
+  std::error_code error;
+  fs::path folder = fs::absolute(folder_path).lexically_normal();
+  if (fs::exists(folder, error) && !fs::is_directory(folder, error)) {
+    throw std::invalid_argument(option + " '" + folder_path + "' is a file, not a folder");
+  }
+  // The nearest existing ancestor must be writable (the command creates the rest).
+  while (!fs::exists(folder, error) && folder.has_parent_path() && folder != folder.parent_path()) {
+    folder = folder.parent_path();
+  }
+  if (!fs::is_directory(folder, error) || ::access(folder.c_str(), W_OK | X_OK) != 0) {
+    throw std::invalid_argument(option + " '" + folder_path + "': folder '" + folder.string() +
+                                "' is not writable");
+  }
 }
 
 }  // namespace hnnstereo::app

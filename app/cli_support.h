@@ -3,8 +3,12 @@
 // the command line, and the OpenCL runtime with its fallback notice.
 
 #include <CLI/CLI.hpp>
+#include <functional>
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "host/opencl_runtime.h"
 #include "vision/matcher_presets.h"
@@ -15,8 +19,14 @@ namespace hnnstereo::app {
 /// Expands `--config FILE.yml` (flat YAML: "long-option-name: value" per line, '#' comments,
 /// `true`/`false` for flags, lists as [a, b]) into command-line arguments placed after the
 /// subcommand; options given on the command line win. Returns `arguments` unchanged when there is
-/// no --config. Throws std::runtime_error on an unreadable or malformed file.
-std::vector<std::string> ExpandConfigArguments(const std::vector<std::string>& arguments);
+/// no --config. `known_option` (optional) says whether the subcommand has an option "--key": an
+/// unknown key is refused naming the file, the line and the key. `origins` (optional) receives,
+/// per option taken from the file, "config file 'F' line N, key 'K'" for later messages.
+/// Throws std::invalid_argument on an unreadable or malformed file or an unknown key.
+std::vector<std::string> ExpandConfigArguments(
+    const std::vector<std::string>& arguments,
+    const std::function<bool(const std::string&)>& known_option = {},
+    std::map<std::string, std::string>* origins = nullptr);
 
 /// Matcher options as command-line flags (features, gating, energy, dynamics, decoding).
 struct MatcherFlags {
@@ -42,6 +52,9 @@ struct MatcherFlags {
   std::string zrange;
   double memory_budget_mb = 2048.0;
   std::string device;
+  /// Set before AddTo for commands on calibrated, unrectified cells (pick, serve): the help then
+  /// shows the defaults that run there (the feature network of hnn-geometry-lr).
+  bool unrectified_cell = false;
   /// Adds the flags to `cmd`.
   void AddTo(CLI::App* cmd);
   /// Parses the string-valued flags into `options` and applies the preset (its objective unless
@@ -53,8 +66,22 @@ struct MatcherFlags {
   void UseFeatureNetworkUnlessRectified(bool rectified);
 };
 
-/// The OpenCL runtime for `engine` == opencl (nullptr otherwise or when none exists, with a
-/// notice on stderr).
+/// The OpenCL runtime for `engine` == opencl; nullptr for the other engines, or when no OpenCL
+/// device exists and none was asked for (the matcher then runs the cpu engine and says so).
+/// Throws std::invalid_argument, listing the devices that exist, when `device` (--device) or
+/// HNNSTEREO_OPENCL_DEVICE / HNNSTEREO_OPENCL_PLATFORM names a device that does not exist.
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device);
+
+/// Checks, before any work, that every output file can be written: its folder exists and takes
+/// a new file (the atomic write's temporary), the path is not a folder, not read-only, and no two
+/// outputs are the same file, and none is one of `inputs` (an overlay written over the left
+/// image). Both hold (option name, path) pairs; empty paths are skipped.
+/// Throws std::invalid_argument naming the option and the path.
+void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
+                          const std::vector<std::pair<std::string, std::string>>& inputs = {});
+
+/// Checks that `folder_path` (an output folder the command creates if needed) is not a file and
+/// that its nearest existing ancestor is writable. Throws std::invalid_argument naming `option`.
+void CheckOutputFolderWritable(const std::string& option, const std::string& folder_path);
 
 }  // namespace hnnstereo::app

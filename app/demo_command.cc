@@ -46,6 +46,10 @@ void RunDemo(const DemoArgs& args) {
     throw std::invalid_argument("unknown --engine '" + args.engine + "' (opencl, cpu or thesis)");
   }
 
+  // The output folder and the device are checked before the work.
+  CheckOutputFolderWritable("--out", args.out);
+  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(sensing.matcher.engine, args.device);
+
   // 1. The scene (and its target images) into the output folder.
   const vision::RenderedScene scene = vision::RenderScene(render);
   const vision::RenderedTarget target = vision::RenderTargetPlacements(scene.cameras, render);
@@ -60,7 +64,6 @@ void RunDemo(const DemoArgs& args) {
 
   // 3. Pick.
   step = std::chrono::steady_clock::now();
-  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(sensing.matcher.engine, args.device);
   const vision::PositionSensingReport report = vision::SensePositions(
       scene.left, scene.right, calibrated.calibration, sensing, runtime.get());
   const double pick_s = SecondsSince(step);

@@ -13,6 +13,7 @@
 #include "vision/lens_distortion.h"
 #include "vision/match_io.h"
 #include "vision/overlay.h"
+#include "vision/setup_checks.h"
 #include "vision/stereo_matcher.h"
 #include "vision/uncalibrated.h"
 
@@ -30,9 +31,17 @@ struct MatchArgs {
 void RunMatch(MatchArgs& args) {
   args.flags.Resolve();
   vision::MatcherOptions& options = args.flags.options;
+  // The whole setup is checked before any work (each check is milliseconds): the outputs, the
+  // pair, the disparity range, the device.
+  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay}},
+                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
   const vision::LoadedImage left = vision::LoadImage(args.left);
   const vision::LoadedImage right = vision::LoadImage(args.right);
   vision::CheckSameSize(left, right);
+  const vision::PairComparison comparison = vision::ComparePair(left.grey, right.grey);
+  if (auto problem = vision::DistinctViewsProblem(comparison, "--left and --right"); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
 
   std::unique_ptr<calib::StereoCalibration> calibration;
   if (!args.calib.empty()) {
@@ -40,9 +49,17 @@ void RunMatch(MatchArgs& args) {
     if (calibration->rectified) options.candidates.rectified = true;
   } else if (args.rectified) {
     options.candidates.rectified = true;
-  } else {
+  }
+  if (options.candidates.rectified && !options.candidates.dense) {
+    const std::string problem = vision::DisparityRangeProblem(
+        options.candidates.min_disparity, options.candidates.max_disparity, left.grey.cols);
+    if (!problem.empty()) throw std::invalid_argument(problem);
+  }
+  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
+  if (!calibration && !args.rectified) {
     // Neither: estimate F from confident correlation matches, then match with the soft
     // epipolar term (projective cameras; no heights).
+    // (The pair was checked above: one image twice would "estimate" F from perfect matches.)
     const vision::UncalibratedReport estimate = vision::EstimateEpipolarGeometry(left.grey, right.grey);
     calibration = std::make_unique<calib::StereoCalibration>(estimate.calibration);
     if (!args.quiet) {
@@ -54,6 +71,12 @@ void RunMatch(MatchArgs& args) {
   }
   args.flags.UseFeatureNetworkUnlessRectified(options.candidates.rectified);
   if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (options.candidates.rectified && comparison.looks_swapped) {
+    std::cerr << "hnnstereo: warning: --left and --right look swapped: "
+              << static_cast<int>(100.0 * comparison.negative_shift_fraction + 0.5)
+              << "% of the textured blocks that moved lie at negative disparity (x_left - x_right "
+                 "< 0); swap the two images\n";
+  }
   if (options.candidates.z_range_mm && !calibration) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }
@@ -68,7 +91,6 @@ void RunMatch(MatchArgs& args) {
     left_grey = vision::UndistortImage(left.grey, lens->K1, lens->D1);
     right_grey = vision::UndistortImage(right.grey, lens->K2, lens->D2);
   }
-  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
   vision::MatchReport report =
       vision::MatchStereo(left_grey, right_grey, calibration.get(), options, runtime.get());
   vision::RefineMatches(left_grey, right_grey, calibration.get(), options, args.flags.refinement,

@@ -15,6 +15,7 @@
 #include "vision/plots.h"
 #include "vision/ply.h"
 #include "vision/position_sensing.h"
+#include "vision/setup_checks.h"
 
 namespace hnnstereo::app {
 namespace {
@@ -32,18 +33,42 @@ void RunPick(PickArgs& args) {
   if (!args.link.frame.empty() && args.link.robot.empty()) {
     throw std::invalid_argument("--frame is used with --robot URI (the link to send the picks to)");
   }
-  // Open the link (and read FRAME.yml) before the slow part, so a bad URI or frame fails fast.
+  // The whole setup is checked before the slow part: outputs, device, calibration, the link
+  // (and FRAME.yml); SenseCellPair checks the pair before matching.
+  CheckOutputsWritable({{"--out", args.out},
+                        {"--overlay", args.overlay},
+                        {"--ply", args.ply},
+                        {"--histogram", args.histogram},
+                        {"--energy-plot", args.energy_plot}},
+                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
+  std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
   robot::RobotFrame frame;
   std::unique_ptr<robot::RobotLink> link;
   if (!args.link.robot.empty()) link = args.link.Open(&frame);
-  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
-  std::unique_ptr<ocl::Runtime> runtime =
-      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
   const SensedPair pair =
       SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
   const vision::PositionSensingReport& report = pair.report;
   const cv::Mat& left_grey = pair.left_grey;
   const vision::LoadedImage& left = pair.left;
+  if (report.objects.empty()) {
+    // No part: were the images given the wrong way round? Swapped cameras put the triangulated
+    // points behind them, or the images correlate far better the other way round.
+    const auto& counts = report.triangulation;
+    const std::pair<double, double> z_range =
+        args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
+    const vision::SwapComparison swap =
+        vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+    if ((counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) || swap.looks_swapped) {
+      throw std::runtime_error(
+          "no parts, and --left and --right look swapped: " + std::to_string(counts.behind_camera) +
+          " of " + std::to_string(counts.behind_camera + counts.accepted) +
+          " triangulated points behind the cameras; median ZNCC along the epipolar lines " +
+          std::to_string(swap.as_given_zncc).substr(0, 4) + " as given, " +
+          std::to_string(swap.swapped_zncc).substr(0, 4) + " swapped");
+    }
+  }
 
   // Everything is computed before anything is written; each file is written atomically.
   nlohmann::json json = vision::ObjectsJson(report, args.cell.sensing);
@@ -110,6 +135,12 @@ void RunPick(PickArgs& args) {
               "points");
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
+    // A round part's yaw is free: it is sent as 0.
+    if (pose.round) {
+      std::printf("%3d %9.1f %9.1f %9.1f %8s %7s %7d\n", id++, pose.centroid.x(),
+                  pose.centroid.y(), pose.height_mm, "round", "-", pose.points);
+      continue;
+    }
     std::printf("%3d %9.1f %9.1f %9.1f %8.1f %7.1f %7d\n", id++, pose.centroid.x(),
                 pose.centroid.y(), pose.height_mm, pose.yaw_deg, pose.yaw_moments_deg, pose.points);
   }

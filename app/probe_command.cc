@@ -9,6 +9,7 @@
 #include "calib/calibration.h"
 #include "vision/image.h"
 #include "vision/position_sensing.h"
+#include "vision/setup_checks.h"
 
 namespace hnnstereo::app {
 namespace {
@@ -41,6 +42,7 @@ void RunProbe(ProbeArgs& args) {
   const vision::LoadedImage left = vision::LoadImage(args.left);
   const vision::LoadedImage right = vision::LoadImage(args.right);
   vision::CheckSameSize(left, right);
+  vision::CheckDistinctViews(left.grey, right.grey, "--left and --right");
   const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
   if (calibration.rectified) {
     throw std::invalid_argument("probe needs the cell's CAL.yml (world frame), not a rectified calib.txt");

@@ -4,6 +4,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "vision/scene_render.h"
 
@@ -18,8 +19,14 @@ struct RenderArgs {
 
 void RunRender(RenderArgs& args) {
   const auto start = std::chrono::steady_clock::now();
-  // Everything is rendered before anything is written.
+  CheckOutputFolderWritable("--out", args.out);  // before the seconds of ray casting
+  // Everything is rendered before anything is written; progress goes to stderr (seconds).
+  if (!args.quiet) std::fprintf(stderr, "rendering the scene (both cameras)...\n");
   const vision::RenderedScene scene = vision::RenderScene(args.options);
+  if (!args.quiet) {
+    std::fprintf(stderr, "rendering the calibration target at %zu heights...\n",
+                 args.options.target_heights_mm.size());
+  }
   const vision::RenderedTarget target = vision::RenderTargetPlacements(scene.cameras, args.options);
   vision::WriteSceneDirectory(scene, target, args.out);
   const double seconds =

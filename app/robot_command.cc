@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "app/robot_link_flags.h"
 #include "robot/frame_io.h"
@@ -72,7 +73,9 @@ void PrintFrame(const robot::RobotFrame& frame) {
 
 void AddFitFrame(CLI::App* robot_cmd) {
   struct Args {
-    std::string points, out, workspace_min = "-400,-400,0", workspace_max = "400,400,500";
+    std::string points, out, workspace_min, workspace_max;
+    double margin_mm = 50.0;
+    double height_mm = 300.0;
     robot::FrameFitOptions fit;
   };
   auto args = std::make_shared<Args>();
@@ -84,24 +87,58 @@ void AddFitFrame(CLI::App* robot_cmd) {
       "calibration's table frame).");
   cmd->add_option("--points", args->points, "Touched points CSV")->required();
   cmd->add_option("--out", args->out, "Output FRAME.yml")->required();
-  cmd->add_option("--workspace-min", args->workspace_min, "Safety box corner X,Y,Z (robot, mm)")
+  cmd->add_option("--workspace-min", args->workspace_min,
+                  "Safety box corner X,Y,Z (robot, mm); default: the touched points' box minus "
+                  "--workspace-margin");
+  cmd->add_option("--workspace-max", args->workspace_max,
+                  "Safety box corner X,Y,Z (robot, mm); default: the touched points' box plus "
+                  "--workspace-margin in x and y, and --workspace-height above the highest");
+  cmd->add_option("--workspace-margin", args->margin_mm,
+                  "Default box: margin around the touched points in x, y and below (mm)")
       ->capture_default_str();
-  cmd->add_option("--workspace-max", args->workspace_max, "Safety box corner X,Y,Z (robot, mm)")
+  cmd->add_option("--workspace-height", args->height_mm,
+                  "Default box: clearance above the highest touched point (mm; parts, approach "
+                  "and retreat must fit)")
       ->capture_default_str();
   cmd->add_option("--max-rms", args->fit.max_rms_mm, "Refuse a fit with a larger RMS (mm)")
       ->capture_default_str();
   cmd->callback([args] {
-    robot::RobotFrame frame;
-    frame.workspace_min = ParseVector3(args->workspace_min, "--workspace-min");
-    frame.workspace_max = ParseVector3(args->workspace_max, "--workspace-max");
+    CheckOutputsWritable({{"--out", args->out}});
+    if (!(args->margin_mm >= 0.0) || !(args->height_mm > 0.0)) {
+      throw std::invalid_argument("--workspace-margin must be >= 0 and --workspace-height > 0");
+    }
     std::vector<Eigen::Vector3d> world, robot_points;
     ReadTouchedPoints(args->points, &world, &robot_points);
+    robot::RobotFrame frame;
+    // The default safety box is the touched points' box (where the tool has been, so where the
+    // cell is) plus a margin, not a fixed +-400 mm that may hold a wall or miss the table.
+    const bool from_points = args->workspace_min.empty() || args->workspace_max.empty();
+    if (from_points && !robot_points.empty()) {
+      Eigen::Vector3d low = robot_points.front(), high = robot_points.front();
+      for (const Eigen::Vector3d& p : robot_points) {
+        low = low.cwiseMin(p);
+        high = high.cwiseMax(p);
+      }
+      frame.workspace_min = low - Eigen::Vector3d::Constant(args->margin_mm);
+      frame.workspace_max = high + Eigen::Vector3d(args->margin_mm, args->margin_mm, args->height_mm);
+    }
+    if (!args->workspace_min.empty()) {
+      frame.workspace_min = ParseVector3(args->workspace_min, "--workspace-min");
+    }
+    if (!args->workspace_max.empty()) {
+      frame.workspace_max = ParseVector3(args->workspace_max, "--workspace-max");
+    }
     const robot::FrameFitReport fit = robot::FitRobotFromWorld(world, robot_points, args->fit);
     frame.robot_from_world = fit.robot_from_world;
     frame.rms_mm = fit.rms_mm;
     robot::SaveRobotFrame(args->out, frame);
     std::printf("fitted %d points: rms %.3f mm, max residual %.3f mm\n", fit.n_points, fit.rms_mm,
                 fit.max_residual_mm);
+    if (from_points) {
+      std::printf("workspace from the touched points' box: %.0f mm margin, %.0f mm above the "
+                  "highest (--workspace-min/--workspace-max to set it)\n",
+                  args->margin_mm, args->height_mm);
+    }
     PrintFrame(frame);
     std::printf("wrote %s\n", args->out.c_str());
   });

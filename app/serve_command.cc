@@ -82,12 +82,7 @@ void RunServe(ServeArgs& args) {
     replayed = robot::SensedObjectsFromJson(ReadText(args.replay));
     sense = [&] { return robot::SensedCycle{replayed, SteadySeconds()}; };
   }
-  if (!args.report.empty()) {
-    const auto folder = std::filesystem::absolute(args.report).parent_path();
-    if (!std::filesystem::is_directory(folder)) {
-      throw std::invalid_argument("--report folder '" + folder.string() + "' does not exist");
-    }
-  }
+  CheckOutputsWritable({{"--report", args.report}});
   robot::RobotFrame frame;
   std::unique_ptr<robot::RobotLink> link = args.link.Open(&frame);
 

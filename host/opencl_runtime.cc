@@ -21,7 +21,7 @@ std::string Lower(std::string text) {
 bool Selects(const std::string& selector, std::size_t index, const std::string& name) {
   if (selector.empty()) return true;
   if (std::all_of(selector.begin(), selector.end(), [](unsigned char c) { return std::isdigit(c); })) {
-    return std::stoul(selector) == index;
+    return selector.size() < 10 && std::stoul(selector) == index;
   }
   return Lower(name).find(Lower(selector)) != std::string::npos;
 }
@@ -97,6 +97,59 @@ DeviceSelection DeviceSelection::FromEnvironment() {
   return selection;
 }
 
+std::vector<DeviceInfo> ListDevices(std::string* why_none) {
+  std::vector<DeviceInfo> devices;
+  std::vector<cl::Platform> platforms;
+  try {
+    cl::Platform::get(&platforms);
+  } catch (const cl::Error& e) {
+    if (why_none) *why_none = std::string("no OpenCL platform (") + ErrorName(e.err()) + ")";
+    return devices;
+  }
+  if (platforms.empty()) {
+    if (why_none) *why_none = "no OpenCL platform is installed";
+    return devices;
+  }
+  for (std::size_t p = 0; p < platforms.size(); ++p) {
+    std::vector<cl::Device> found;
+    try {
+      platforms[p].getDevices(CL_DEVICE_TYPE_ALL, &found);
+    } catch (const cl::Error&) {
+      continue;  // a platform without devices answers CL_DEVICE_NOT_FOUND
+    }
+    for (std::size_t d = 0; d < found.size(); ++d) {
+      DeviceInfo info;
+      info.platform_index = p;
+      info.platform_name = Trim(platforms[p].getInfo<CL_PLATFORM_NAME>());
+      info.device_index = d;
+      info.device_name = Trim(found[d].getInfo<CL_DEVICE_NAME>());
+      const cl_device_type type = found[d].getInfo<CL_DEVICE_TYPE>();
+      info.type = (type & CL_DEVICE_TYPE_GPU)           ? "gpu"
+                  : (type & CL_DEVICE_TYPE_CPU)         ? "cpu"
+                  : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "accelerator"
+                                                        : "other";
+      info.version = Trim(found[d].getInfo<CL_DEVICE_VERSION>());
+      info.global_memory_bytes = found[d].getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
+      info.compute_units = found[d].getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+      devices.push_back(std::move(info));
+    }
+  }
+  if (devices.empty() && why_none) *why_none = "the OpenCL platforms list no device";
+  return devices;
+}
+
+std::string DescribeDevices(const std::vector<DeviceInfo>& devices) {
+  if (devices.empty()) return "no OpenCL device is installed";
+  std::string text;
+  for (const DeviceInfo& info : devices) {
+    if (!text.empty()) text += "; ";
+    text += "platform " + std::to_string(info.platform_index) + " '" + info.platform_name +
+            "': device " + std::to_string(info.device_index) + " '" + info.device_name + "' (" +
+            info.type + ")";
+  }
+  return text;
+}
+
 Runtime::Runtime(cl::Context context, cl::Device device, std::string description)
     : context_(std::move(context)),
       device_(std::move(device)),
@@ -139,8 +192,12 @@ std::unique_ptr<Runtime> Runtime::Create(const DeviceSelection& selection, std::
   }
   if (found.empty()) {
     if (why_not) {
-      *why_not = "no OpenCL device matches platform '" + selection.platform + "' device '" +
-                 selection.device + "'";
+      std::string asked;
+      if (!selection.platform.empty()) asked += "platform '" + selection.platform + "'";
+      if (!selection.device.empty()) {
+        asked += std::string(asked.empty() ? "" : " ") + "device '" + selection.device + "'";
+      }
+      *why_not = "no OpenCL device matches " + asked + "; there are: " + DescribeDevices(ListDevices());
     }
     return nullptr;
   }

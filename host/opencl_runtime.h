@@ -3,12 +3,14 @@
 // that callers pass around (no hidden globals; Boost.Compute / VexCL habits).
 
 #include <CL/opencl.hpp>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <vector>
 
 namespace hnnstereo::ocl {
 
@@ -42,12 +44,35 @@ struct DeviceSelection {
   std::string platform;  ///< index or name substring; empty = any
   std::string device;    ///< index or name substring; empty = prefer a GPU
   static DeviceSelection FromEnvironment();
+  /// True when nothing was asked for (then a missing device may fall back to the cpu engine).
+  bool empty() const { return platform.empty() && device.empty(); }
 };
+
+/// One OpenCL device as `hnnstereo devices` lists it.
+struct DeviceInfo {
+  std::size_t platform_index = 0;  ///< what HNNSTEREO_OPENCL_PLATFORM takes
+  std::string platform_name;
+  std::size_t device_index = 0;    ///< index within its platform: what --device takes
+  std::string device_name;         ///< a case-insensitive substring of it also works
+  std::string type;                ///< "gpu", "cpu", "accelerator" or "other"
+  std::string version;             ///< CL_DEVICE_VERSION
+  std::uint64_t global_memory_bytes = 0;
+  unsigned compute_units = 0;
+};
+
+/// All OpenCL platforms' devices, in platform then device order. Empty when there are none,
+/// with the reason in `why_none` (no ICD loader platform, a platform that fails to list...).
+std::vector<DeviceInfo> ListDevices(std::string* why_none = nullptr);
+
+/// One line naming the devices that exist, e.g. "platform 0 'Portable Computing Language':
+/// device 0 'cpu-haswell-...' (cpu)", or "no OpenCL device is installed".
+std::string DescribeDevices(const std::vector<DeviceInfo>& devices);
 
 class Runtime {
  public:
-  /// Opens the selected device. Returns nullopt (and the reason in `why_not`) when no OpenCL
-  /// platform or no matching device exists.
+  /// Opens the selected device. Returns nullptr (and the reason in `why_not`) when no OpenCL
+  /// platform or no matching device exists; when a device was asked for, the reason lists the
+  /// devices that exist.
   static std::unique_ptr<Runtime> Create(const DeviceSelection& selection, std::string* why_not);
 
   const cl::Context& context() const { return context_; }

@@ -70,6 +70,10 @@ std::vector<SensedObject> SensedObjectsFromJson(const std::string& json_text) {
                                  centroid[2].get<double>()};
       object.height_mm = item.at("height").get<double>();
       object.yaw_deg = item.at("yaw_deg").get<double>();
+      // A round part has no orientation: its yaw is free, and 0 is sent (no needless wrist turn).
+      if (item.contains("round") && item["round"].is_boolean() && item["round"].get<bool>()) {
+        object.yaw_deg = 0.0;
+      }
       objects.push_back(object);
     } catch (const std::exception&) {
       throw std::invalid_argument(

@@ -18,7 +18,7 @@ struct SensedObject {
   int id = 0;
   Eigen::Vector3d top_centre_world = Eigen::Vector3d::Zero();  ///< mm, world frame
   double height_mm = 0.0;                                      ///< top face above the table
-  double yaw_deg = 0.0;                                        ///< in the table plane, (-90, 90]
+  double yaw_deg = 0.0;  ///< in the table plane, (-90, 90]; 0 for round parts (yaw is free)
 };
 
 struct PickPlanningOptions {

@@ -1,6 +1,7 @@
 #include "robot/safety_gate.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <stdexcept>
 
 namespace hnnstereo::robot {
@@ -9,6 +10,32 @@ namespace {
 bool Inside(const Eigen::Vector3d& p, const SafetyLimits& limits) {
   return (p.array() >= limits.workspace_min.array()).all() &&
          (p.array() <= limits.workspace_max.array()).all();
+}
+
+std::string Millimetres(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f", value);
+  return text;
+}
+
+std::string Point(const Eigen::Vector3d& p) {
+  return "(" + Millimetres(p.x()) + ", " + Millimetres(p.y()) + ", " + Millimetres(p.z()) + ") mm";
+}
+
+// Which limit a point outside the box breaks, e.g. "x 5000.0 > max 1000.0".
+std::string BrokenLimit(const Eigen::Vector3d& p, const SafetyLimits& limits) {
+  static const char* const kAxis[3] = {"x", "y", "z"};
+  for (int axis = 0; axis < 3; ++axis) {
+    if (p[axis] < limits.workspace_min[axis]) {
+      return std::string(kAxis[axis]) + " " + Millimetres(p[axis]) + " < min " +
+             Millimetres(limits.workspace_min[axis]);
+    }
+    if (p[axis] > limits.workspace_max[axis]) {
+      return std::string(kAxis[axis]) + " " + Millimetres(p[axis]) + " > max " +
+             Millimetres(limits.workspace_max[axis]);
+    }
+  }
+  return "inside";
 }
 
 }  // namespace
@@ -42,8 +69,15 @@ std::optional<std::string> SafetyGate::Admit(PickCommand* command) {
   const Eigen::Vector3d retreat = command->position_mm + Eigen::Vector3d(0, 0, command->retreat_mm);
   for (const auto& [name, point] : {std::pair{"pick", command->position_mm},
                                     std::pair{"approach", approach}, std::pair{"retreat", retreat}}) {
-    if (!Inside(point, limits_)) return std::string(name) + " pose is outside the workspace box";
-    if (point.norm() > limits_.max_reach_mm) return std::string(name) + " pose is beyond reach";
+    if (!Inside(point, limits_)) {
+      return std::string(name) + " pose is outside the workspace box: " + Point(point) + ", " +
+             BrokenLimit(point, limits_);
+    }
+    if (point.norm() > limits_.max_reach_mm) {
+      return std::string(name) + " pose is beyond reach: " + Point(point) + " is " +
+             Millimetres(point.norm()) + " mm from the base > max reach " +
+             Millimetres(limits_.max_reach_mm) + " mm";
+    }
   }
   command->speed_fraction = std::min(command->speed_fraction, limits_.max_speed_fraction);
   last_sequence_ = command->sequence;

@@ -108,7 +108,16 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   std::vector<Scored> scored;
   std::vector<float> profile;
   if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
-    // Columns are disparity levels min..max (thesis code, operation mode 3).
+    // Columns are disparity levels min..max (thesis code, operation mode 3). A level beyond the
+    // image width can never hold a candidate; refuse an absurd range before allocating for it.
+    const double width_limit = std::max(0, zncc.right_width() - 1);
+    if (options.max_disparity > width_limit || options.min_disparity < -width_limit) {
+      throw std::invalid_argument(
+          "disparity range [" + std::to_string(options.min_disparity) + ", " +
+          std::to_string(options.max_disparity) + "] is beyond the image width (" +
+          std::to_string(zncc.right_width()) + " px: |disparity| <= " +
+          std::to_string(static_cast<int>(width_limit)) + ")");
+    }
     const int d_min = static_cast<int>(std::ceil(options.min_disparity));
     const int d_max = static_cast<int>(std::floor(options.max_disparity));
     problem.n_columns = std::max(0, d_max - d_min + 1);

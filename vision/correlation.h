@@ -19,6 +19,8 @@ class ZnccMatcher {
   float operator()(const Eigen::Vector2f& left_point, const Eigen::Vector2f& right_point) const;
 
   int window() const { return window_; }
+  /// Width of the right image (px).
+  int right_width() const { return right_.cols; }
 
   /// True when the window centred at the (rounded) right point lies inside the right image.
   bool RightWindowInside(const Eigen::Vector2f& right_point) const;

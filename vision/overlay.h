@@ -13,7 +13,8 @@ cv::Mat ToColour8(const cv::Mat& image);
 
 /// Left and right images side by side: every feature as a dim dot, matched features coloured by
 /// disparity (blue near zero, red at the largest) and joined by a line for every `line_every`-th
-/// match.
+/// match; below them a 56 px legend: the colour bar with its scale in px, the number of matches
+/// and features, the engine, the device and the time.
 cv::Mat DrawMatchOverlay(const cv::Mat& left, const cv::Mat& right, const MatchReport& report,
                          int line_every = 60);
 

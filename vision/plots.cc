@@ -6,15 +6,17 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <string>
+#include <vector>
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 namespace hnnstereo::vision {
 namespace {
 
-constexpr int kPlotWidth = 640;
-constexpr int kPlotHeight = 360;
-constexpr int kMarginLeft = 70, kMarginRight = 20, kMarginTop = 30, kMarginBottom = 45;
+constexpr int kPlotWidth = 900;
+constexpr int kPlotHeight = 450;
+constexpr int kMarginLeft = 80, kMarginRight = 25, kMarginTop = 36, kMarginBottom = 50;
 
 std::string Format(const char* format, double value) {
   char text[64];
@@ -22,32 +24,70 @@ std::string Format(const char* format, double value) {
   return text;
 }
 
-// Axes with a title and labels; returns the plotting rectangle.
+// A round tick step (1, 2 or 5 times a power of ten) giving about `target` ticks over `range`.
+double NiceStep(double range, int target) {
+  const double raw = range / std::max(1, target);
+  const double power = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double nice : {1.0, 2.0, 5.0, 10.0}) {
+    if (nice * power >= raw) return nice * power;
+  }
+  return 10.0 * power;
+}
+
+// Axes with a title and labels and round tick values; returns the plotting rectangle. With
+// `log_x` the x axis shows log10(1 + x), ticks at 0, 1, 10, 100...
 cv::Rect DrawAxes(cv::Mat& canvas, const std::string& title, const std::string& x_label,
                   const std::string& y_label, double x_min, double x_max, double y_min,
-                  double y_max) {
+                  double y_max, bool log_x = false) {
   const cv::Rect area(kMarginLeft, kMarginTop, kPlotWidth - kMarginLeft - kMarginRight,
                       kPlotHeight - kMarginTop - kMarginBottom);
-  const cv::Scalar ink(40, 40, 40);
-  cv::rectangle(canvas, area, ink, 1);
-  cv::putText(canvas, title, {kMarginLeft, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
-  cv::putText(canvas, x_label, {area.x + area.width / 2 - 60, kPlotHeight - 8},
-              cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
-  cv::putText(canvas, y_label, {4, kMarginTop - 8}, cv::FONT_HERSHEY_SIMPLEX, 0.4, ink, 1,
+  const cv::Scalar ink(40, 40, 40), grid(225, 225, 225);
+  cv::putText(canvas, title, {kMarginLeft, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
+  cv::putText(canvas, x_label, {area.x + area.width / 2 - 60, kPlotHeight - 10},
+              cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
+  cv::putText(canvas, y_label, {6, kMarginTop - 18}, cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1,
               cv::LINE_AA);
-  for (int tick = 0; tick <= 4; ++tick) {
-    const double fraction = tick / 4.0;
-    const int x = area.x + static_cast<int>(fraction * area.width);
-    const int y = area.y + area.height - static_cast<int>(fraction * area.height);
-    cv::line(canvas, {x, area.y + area.height}, {x, area.y + area.height + 4}, ink);
-    cv::putText(canvas, Format("%.4g", x_min + fraction * (x_max - x_min)),
-                {x - 15, area.y + area.height + 17}, cv::FONT_HERSHEY_SIMPLEX, 0.38, ink, 1,
-                cv::LINE_AA);
-    cv::line(canvas, {area.x - 4, y}, {area.x, y}, ink);
-    cv::putText(canvas, Format("%.4g", y_min + fraction * (y_max - y_min)), {4, y + 4},
-                cv::FONT_HERSHEY_SIMPLEX, 0.38, ink, 1, cv::LINE_AA);
+  auto x_of = [&](double x) {
+    const double f = log_x ? std::log10(1.0 + x - x_min) / std::log10(1.0 + x_max - x_min)
+                           : (x - x_min) / (x_max - x_min);
+    return area.x + static_cast<int>(std::lround(f * area.width));
+  };
+  std::vector<double> x_ticks;
+  if (log_x) {
+    x_ticks.push_back(x_min);
+    for (double decade = 1.0; decade <= x_max - x_min; decade *= 10.0) x_ticks.push_back(x_min + decade);
+  } else {
+    const double step = NiceStep(x_max - x_min, 6);
+    for (double x = std::ceil(x_min / step) * step; x <= x_max + 1e-9 * step; x += step) {
+      x_ticks.push_back(x);
+    }
   }
+  for (double x : x_ticks) {
+    const int px = x_of(x);
+    cv::line(canvas, {px, area.y}, {px, area.y + area.height}, grid);
+    cv::line(canvas, {px, area.y + area.height}, {px, area.y + area.height + 5}, ink);
+    const std::string label = Format("%g", std::abs(x) < 1e-9 ? 0.0 : x);
+    cv::putText(canvas, label, {px - 4 * static_cast<int>(label.size()), area.y + area.height + 20},
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
+  }
+  const double y_step = NiceStep(y_max - y_min, 5);
+  for (double y = std::ceil(y_min / y_step) * y_step; y <= y_max + 1e-9 * y_step; y += y_step) {
+    const int py = area.y + area.height -
+                   static_cast<int>(std::lround((y - y_min) / (y_max - y_min) * area.height));
+    cv::line(canvas, {area.x, py}, {area.x + area.width, py}, grid);
+    cv::line(canvas, {area.x - 5, py}, {area.x, py}, ink);
+    cv::putText(canvas, Format("%g", std::abs(y) < 1e-9 * y_step ? 0.0 : y), {6, py + 5},
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
+  }
+  cv::rectangle(canvas, area, ink, 1);
   return area;
+}
+
+// Text with a dark outline: legible on any background, the part's own colour included.
+void OutlinedText(cv::Mat& canvas, const std::string& text, cv::Point at, const cv::Scalar& colour,
+                  double scale = 0.55) {
+  cv::putText(canvas, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar::all(0), 4, cv::LINE_AA);
+  cv::putText(canvas, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv::LINE_AA);
 }
 
 }  // namespace
@@ -97,11 +137,17 @@ cv::Mat DrawObjectOverlay(const cv::Mat& left_image, const PositionSensingReport
         pose.centroid + line_length_mm * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0);
     const cv::Point2d centre = project(pose.centroid);
     const cv::Scalar colour = LabelColour(static_cast<int>(o));
+    cv::drawMarker(canvas, centre, cv::Scalar::all(0), cv::MARKER_CROSS, 14, 4, cv::LINE_AA);
     cv::drawMarker(canvas, centre, colour, cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
-    cv::arrowedLine(canvas, centre, project(tip), colour, 2, cv::LINE_AA, 0, 0.2);
-    cv::putText(canvas, std::to_string(o + 1) + ": " + Format("%.0f mm", pose.height_mm),
-                centre + cv::Point2d(6, -6), cv::FONT_HERSHEY_SIMPLEX, 0.45, colour, 1,
-                cv::LINE_AA);
+    // A round part has no orientation: no yaw arrow (its yaw is sent as 0).
+    if (!pose.round) {
+      cv::arrowedLine(canvas, centre, project(tip), cv::Scalar::all(0), 4, cv::LINE_AA, 0, 0.2);
+      cv::arrowedLine(canvas, centre, project(tip), colour, 2, cv::LINE_AA, 0, 0.2);
+    }
+    OutlinedText(canvas,
+                 std::to_string(o + 1) + ": " + Format("%.0f mm", pose.height_mm) +
+                     (pose.round ? " (round)" : ""),
+                 cv::Point(static_cast<int>(centre.x) + 8, static_cast<int>(centre.y) - 8), colour);
   }
   return canvas;
 }
@@ -135,8 +181,10 @@ cv::Mat PlotHeightHistogram(const PositionSensingReport& report, double bin_mm) 
     const double z = report.objects[o].height_mm;
     const int x = area.x + static_cast<int>((z - z_min) / (z_max - z_min) * area.width);
     cv::line(canvas, {x, area.y}, {x, area.y + area.height}, LabelColour(static_cast<int>(o)), 1);
-    cv::putText(canvas, std::to_string(o + 1), {x + 2, area.y + 12 + 12 * static_cast<int>(o % 3)},
-                cv::FONT_HERSHEY_SIMPLEX, 0.4, LabelColour(static_cast<int>(o)), 1, cv::LINE_AA);
+    cv::line(canvas, {x, area.y}, {x, area.y + area.height}, LabelColour(static_cast<int>(o)), 2);
+    OutlinedText(canvas, "part " + std::to_string(o + 1),
+                 {x + 3, area.y + 16 + 16 * static_cast<int>(o % 4)},
+                 LabelColour(static_cast<int>(o)), 0.45);
   }
   return canvas;
 }
@@ -161,13 +209,15 @@ cv::Mat PlotEnergyTrace(const hnn::SolveReport& solve) {
     e_max += 1.0;
   }
   const double i_max = std::max(1.0, iteration.back());
+  // Log iteration axis: the energy falls in the first steps, then creeps; both stay visible.
   const cv::Rect area =
       DrawAxes(canvas, "Hopfield energy (eq. 6.10), " + solve.engine + ", " + solve.termination,
-               "iteration", "energy", 0.0, i_max, e_min, e_max);
+               "iteration (log scale)", "energy", 0.0, i_max, e_min, e_max, true);
   std::vector<cv::Point> polyline;
   for (std::size_t k = 0; k < energy.size(); ++k) {
     polyline.emplace_back(
-        area.x + static_cast<int>(iteration[k] / i_max * area.width),
+        area.x + static_cast<int>(std::log10(1.0 + iteration[k]) / std::log10(1.0 + i_max) *
+                                  area.width),
         area.y + area.height - static_cast<int>((energy[k] - e_min) / (e_max - e_min) * area.height));
   }
   cv::polylines(canvas, polyline, false, cv::Scalar(200, 80, 30), 2, cv::LINE_AA);

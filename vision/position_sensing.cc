@@ -10,6 +10,7 @@
 
 #include "calib/epipolar.h"
 #include "vision/correlation.h"
+#include "vision/setup_checks.h"
 #include "vision/triangulation.h"
 
 namespace hnnstereo::vision {
@@ -195,6 +196,8 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
     throw std::invalid_argument("position sensing needs the cell's CAL.yml (world frame with the "
                                 "table at z = 0), not a rectified calib.txt");
   }
+  // One image given twice would give a fake part at a fake height (vision/setup_checks.h).
+  CheckDistinctViews(left_grey, right_grey);
   MatchReport match = MatchStereo(left_grey, right_grey, &calibration, options.matcher, runtime);
   return SensePositionsFromMatches(std::move(match), calibration, options, left_grey);
 }

@@ -91,8 +91,8 @@ struct PositionSensingReport {
 };
 
 /// Matches, triangulates, clusters and estimates poses. `calibration` is required (P1, P2, F).
-/// Throws std::invalid_argument on bad options / calibration, std::runtime_error when matching
-/// fails (no features...).
+/// Throws std::invalid_argument on bad options / calibration or when the pair is one image twice
+/// (CheckDistinctViews), std::runtime_error when matching fails (no features...).
 PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                      const calib::StereoCalibration& calibration,
                                      const PositionSensingOptions& options, ocl::Runtime* runtime);

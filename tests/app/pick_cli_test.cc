@@ -102,8 +102,8 @@ TEST_F(PickCli, PickWritesObjectsJsonMatchingTheTruth) {
     EXPECT_LE(detected["yaw_deg"].get<double>(), 90.0);
   }
   EXPECT_EQ(cv::imread(Path("overlay.png")).cols, 640);
-  EXPECT_EQ(cv::imread(Path("heights.png")).cols, 640);
-  EXPECT_EQ(cv::imread(Path("energy.png")).cols, 640);
+  EXPECT_EQ(cv::imread(Path("heights.png")).cols, 900) << "plots are at least 800 px wide";
+  EXPECT_EQ(cv::imread(Path("energy.png")).cols, 900);
   std::ifstream ply(Path("points.ply"));
   std::string first_line;
   std::getline(ply, first_line);

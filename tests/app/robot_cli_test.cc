@@ -78,6 +78,26 @@ TEST_F(RobotCli, FitFrameRecoversTheThesisTransformFromTouchedPoints) {
   EXPECT_NE(outside.output.find("OUTSIDE the workspace"), std::string::npos) << outside.output;
 }
 
+// Without --workspace-min/--workspace-max the safety box is the touched points' box plus the
+// margin (50 mm) and the clearance above the highest point (300 mm), not a fixed +-400 mm.
+TEST_F(RobotCli, FitFrameDefaultWorkspaceIsTheTouchedBoxPlusAMargin) {
+  std::ofstream(Path("touched.csv")) << "0,0,0,500,-100,20\n200,0,0,700,-100,20\n"
+                                        "0,150,0,500,50,20\n200,150,40,700,50,60\n";
+  const CliResult fit =
+      RunCli("robot fit-frame --points " + Path("touched.csv") + " --out " + Path("fit.yml"));
+  ASSERT_EQ(fit.exit_code, 0) << fit.output;
+  EXPECT_NE(fit.output.find("[450.0, 750.0] x [-150.0, 100.0] x [-30.0, 360.0]"),
+            std::string::npos)
+      << fit.output;
+  EXPECT_NE(fit.output.find("workspace from the touched points' box"), std::string::npos)
+      << fit.output;
+  const CliResult set = RunCli("robot fit-frame --points " + Path("touched.csv") + " --out " +
+                               Path("fit2.yml") + " --workspace-margin 10 --workspace-height 100");
+  ASSERT_EQ(set.exit_code, 0) << set.output;
+  EXPECT_NE(set.output.find("[490.0, 710.0] x [-110.0, 60.0] x [10.0, 160.0]"), std::string::npos)
+      << set.output;
+}
+
 TEST_F(RobotCli, FitFrameRefusesDegenerateAndMalformedPoints) {
   std::ofstream(Path("line.csv")) << "0,0,0,0,0,0\n10,0,0,10,0,0\n20,0,0,20,0,0\n";
   ExpectCleanFailure(

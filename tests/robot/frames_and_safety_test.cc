@@ -78,6 +78,24 @@ TEST(SafetyGate, RefusesEverythingUnsafe) {
   EXPECT_EQ(gate.Admit(&next), std::nullopt) << "refusals do not consume sequence numbers";
 }
 
+// A refusal line names the pose's coordinates and the limit it breaks.
+TEST(SafetyGate, RefusalsGiveTheCoordinatesAndTheLimit) {
+  SafetyLimits limits;
+  limits.workspace_min = {-400, -400, 0};
+  limits.workspace_max = {400, 400, 500};
+  SafetyGate gate(limits, true);
+  PickCommand outside = Command(1, {100, 50, -10});
+  const auto below = gate.Admit(&outside);
+  ASSERT_NE(below, std::nullopt);
+  EXPECT_NE(below->find("(100.0, 50.0, -10.0) mm"), std::string::npos) << *below;
+  EXPECT_NE(below->find("z -10.0 < min 0.0"), std::string::npos) << *below;
+  PickCommand far = Command(2, {390, 390, 300});
+  const auto reach = gate.Admit(&far);
+  ASSERT_NE(reach, std::nullopt);
+  EXPECT_NE(reach->find("beyond reach: (390.0, 390.0,"), std::string::npos) << *reach;
+  EXPECT_NE(reach->find("> max reach " ), std::string::npos) << *reach;
+}
+
 TEST(SafetyGate, NoFrameCalibrationSendsNothing) {
   SafetyGate gate(SafetyLimits{}, false);
   PickCommand command = Command(1, {100, 50, 40});

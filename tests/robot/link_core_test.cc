@@ -78,6 +78,16 @@ TEST(SensedObjectsFromJson, ReadsPickOutputAndRefusesBadFiles) {
                std::invalid_argument);
 }
 
+// A round part's yaw is free: 0 is sent whatever the file's yaw_deg.
+TEST(SensedObjectsFromJson, RoundPartsCarryYawZero) {
+  const auto objects = SensedObjectsFromJson(
+      R"({"objects":[{"id":1,"centroid":[1,2,30],"height":30,"yaw_deg":37,"round":true},)"
+      R"({"id":2,"centroid":[5,2,30],"height":30,"yaw_deg":37,"round":false}]})");
+  ASSERT_EQ(objects.size(), 2u);
+  EXPECT_DOUBLE_EQ(objects[0].yaw_deg, 0.0);
+  EXPECT_DOUBLE_EQ(objects[1].yaw_deg, 37.0);
+}
+
 class FrameFile : public ::testing::Test {
  protected:
   void SetUp() override {

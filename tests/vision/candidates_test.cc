@@ -185,5 +185,28 @@ TEST(BuildCandidates, RefusesBadOptions) {
                std::invalid_argument);
 }
 
+// A disparity range far beyond the image width (1e9 px) once allocated gigabytes of levels;
+// it is refused at once, naming the width.
+TEST(BuildCandidates, RefusesADisparityRangeBeyondTheImageWidth) {
+  const Pair pair = TexturedPair(6);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  for (const auto& [min_d, max_d] : {std::pair{0.0, 1e9}, std::pair{-1e6, 10.0}, std::pair{0.0, 160.0}}) {
+    options.min_disparity = min_d;
+    options.max_disparity = max_d;
+    try {
+      BuildCandidates(pair.left_points, {}, zncc, nullptr, options);
+      ADD_FAILURE() << "no exception for [" << min_d << ", " << max_d << "]";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("image width (160 px"), std::string::npos) << e.what();
+    }
+  }
+  options.min_disparity = -159;
+  options.max_disparity = 159;  // the widest range that fits
+  EXPECT_NO_THROW(BuildCandidates(pair.left_points, {}, zncc, nullptr, options));
+}
+
 }  // namespace
 }  // namespace hnnstereo::vision
