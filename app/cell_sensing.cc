@@ -66,6 +66,12 @@ void CellSensingFlags::Resolve() {
   }
 }
 
+double WarmUpCellKernels(ocl::Runtime* runtime, const vision::MatcherOptions& matcher) {
+  if (runtime == nullptr || matcher.engine != hnn::EngineKind::kOpenCL) return 0.0;
+  hnn::OpenClEngine engine(*runtime, matcher.opencl);
+  return engine.WarmUp(matcher.energy, matcher.dynamics, matcher.candidates.kind);
+}
+
 SensedPair SenseCellPair(const std::string& left_path, const std::string& right_path,
                          const calib::StereoCalibration& calibration,
                          const std::string& calibration_name, const CellSensingFlags& flags,

@@ -33,6 +33,11 @@ struct SensedPair {
 };
 
 /// Loads the pair (same size, the calibration's size), undistorts when D is present, senses.
+/// Builds and runs the opencl engine's kernels once (OpenClEngine::WarmUp) for the cell's
+/// matcher settings, so that the first trigger costs what later ones do; no-op without a
+/// runtime or for the other engines. Returns the milliseconds spent.
+double WarmUpCellKernels(ocl::Runtime* runtime, const vision::MatcherOptions& matcher);
+
 SensedPair SenseCellPair(const std::string& left_path, const std::string& right_path,
                          const calib::StereoCalibration& calibration,
                          const std::string& calibration_name, const CellSensingFlags& flags,

@@ -195,10 +195,13 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   stop_option = cmd->add_option(
       "--stop", stop_rule,
       "What ends the parallel engines' run: energy (|dE| below the tolerance, the thesis's rule) "
-      "or decisions (every row's winner settled); default: the preset's");
+      "or decisions (every row's winner settled); the default shown is hnn-default's")
+      ->capture_default_str();
   check_interval_option = cmd->add_option(
-      "--check-interval", o.dynamics.energy_interval,
-      "Steps between convergence checks (energy and decisions); default: the preset's");
+      "--check-interval", check_interval,
+      "Steps between convergence checks (energy and decisions); the default shown is "
+      "hnn-default's")
+      ->capture_default_str();
   cmd->add_option("--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines")
       ->capture_default_str();
   cmd->add_option("--max-updates", o.dynamics.max_updates,
@@ -281,6 +284,8 @@ void MatcherFlags::Resolve() {
   if (!given(check_interval_option)) {
     o.dynamics.energy_interval = chosen->matcher.dynamics.energy_interval;
     o.dynamics.stable_checks = chosen->matcher.dynamics.stable_checks;
+  } else {
+    o.dynamics.energy_interval = check_interval;
   }
   if (auto w = hnn::ParseWeightStorage(weight_storage)) {
     o.opencl.storage = *w;

@@ -44,6 +44,7 @@ struct MatcherFlags {
   CLI::Option* stop_option = nullptr;
   CLI::Option* check_interval_option = nullptr;
   std::string stop_rule = "decisions";
+  int check_interval = 2;
   std::string initial_state = "off";
   std::string activation = "continuous";
   std::string decode = "thesis";

@@ -66,6 +66,8 @@ void RunServe(ServeArgs& args) {
     args.cell.Resolve();
     calibration = calib::LoadCalibration(args.calib);
     runtime = OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+    // Compile the kernels now, not on the first trigger (the PLC would wait for it).
+    WarmUpCellKernels(runtime.get(), args.cell.sensing.matcher);
     sense = [&] {
       if (!args.capture.empty()) {
         const int code = std::system(args.capture.c_str());

@@ -51,6 +51,9 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
   const auto& d = options.dynamics;
   json["dynamics_options"] = {{"alpha", d.alpha}, {"time_step", d.time_step}, {"tau", d.tau},
                               {"max_steps", d.max_steps},
+                              {"stop_rule", d.stop_rule == hnn::DynamicsOptions::StopRule::kDecisions
+                                                ? "decisions" : "energy"},
+                              {"check_interval", d.energy_interval},
                               {"initial_state", hnn::InitialStateName(d.initial_state)},
                               {"activation", d.activation == hnn::Activation::kContinuous
                                                  ? "continuous" : "discrete"}};
@@ -65,6 +68,10 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                {"max_epipolar_distance_px",
                                 options.candidates.max_epipolar_distance_px}};
   json["decode"] = hnn::DecodeMethodName(options.decode.method);
+  json["weight_storage"] = report.solve.weight_storage.empty()
+                               ? std::string(hnn::WeightStorageName(options.opencl.storage))
+                               : report.solve.weight_storage;
+  json["min_confidence"] = options.min_confidence;
   const auto& c = options.confidence;
   json["confidence_options"] = {{"bias", c.bias},
                                 {"w_potential_margin", c.w_potential_margin},

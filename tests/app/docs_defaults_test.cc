@@ -87,7 +87,10 @@ TEST_F(DocsDefaults, EngineTableEqualsHelpAndReport) {
       {"--max-steps", "/dynamics_options/max_steps"},
       {"--init", "/dynamics_options/initial_state"},
       {"--activation", "/dynamics_options/activation"},
-      {"--decode", "/decode"}};
+      {"--decode", "/decode"},
+      {"--stop", "/dynamics_options/stop_rule"},
+      {"--check-interval", "/dynamics_options/check_interval"},
+      {"--min-confidence", "/min_confidence"}};
   const auto run = RunCli("match --left " + kTeddyDir + "/im2.png --right " + kTeddyDir +
                           "/im6.png --rectified --max-features 400 --engine cpu --quiet --out " +
                           Path("m.csv") + " --report " + Path("r.json"));
