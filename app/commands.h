@@ -15,5 +15,6 @@ void AddProbeCommand(CLI::App& app);
 void AddEvalCommand(CLI::App& app);
 void AddServeCommand(CLI::App& app);
 void AddRobotCommand(CLI::App& app);
+void AddViewCommand(CLI::App& app);
 
 }  // namespace hnnstereo::app
