@@ -108,7 +108,7 @@ class BackgroundCli {
 int PortOf(const std::string& url) {
   const std::smatch match = [&] {
     std::smatch m;
-    std::regex_search(url, m, std::regex(R"(:(\d+)/)"));
+    std::regex_search(url, m, std::regex(R"re(:(\d+)/)re"));
     return m;
   }();
   return match.empty() ? -1 : std::stoi(match[1]);
@@ -256,16 +256,16 @@ TEST_F(CellPageCli, HeadlessChromiumShowsEveryPartAndTheOverlay) {
       << ReadFile(dir_ + "/chromium.log");
   const std::string dom = ReadFile(dom_path);
   EXPECT_NE(dom.find("data-ready=\"1\""), std::string::npos) << "the page never rendered";
-  EXPECT_TRUE(std::regex_search(dom, std::regex(R"(<img[^>]*id="overlay"[^>]*data-loaded="1")")))
+  EXPECT_TRUE(std::regex_search(dom, std::regex(R"re(<img[^>]*id="overlay"[^>]*data-loaded="1")re")))
       << "the overlay image did not load";
   std::map<int, double> rows;
-  const std::regex row(R"(<tr[^>]*class="part"[^>]*>)");
+  const std::regex row(R"re(<tr[^>]*class="part"[^>]*>)re");
   for (auto it = std::sregex_iterator(dom.begin(), dom.end(), row); it != std::sregex_iterator();
        ++it) {
     const std::string tag = it->str();
     std::smatch id, height;
-    ASSERT_TRUE(std::regex_search(tag, id, std::regex(R"(data-id="(\d+)")"))) << tag;
-    ASSERT_TRUE(std::regex_search(tag, height, std::regex(R"(data-height="([-0-9.eE+]+)")")))
+    ASSERT_TRUE(std::regex_search(tag, id, std::regex(R"re(data-id="(\d+)")re"))) << tag;
+    ASSERT_TRUE(std::regex_search(tag, height, std::regex(R"re(data-height="([-0-9.eE+]+)")re")))
         << tag;
     rows[std::stoi(id[1])] = std::stod(height[1]);
   }
