@@ -76,8 +76,7 @@ void RunView(ViewArgs& args) {
   const std::atomic<bool>* stop = InstallStopSignals();
   const auto end = std::chrono::steady_clock::now() +
                    std::chrono::milliseconds(static_cast<long>(args.duration_s * 1000.0));
-  while (!stop->load() &&
-         (args.duration_s == 0.0 || std::chrono::steady_clock::now() < end)) {
+  while (!stop->load() && (args.duration_s == 0.0 || std::chrono::steady_clock::now() < end)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
 }
@@ -99,8 +98,9 @@ void AddViewCommand(CLI::App& app) {
   cmd->add_option("--left", args->left, "The left image the parts were sensed on")->required();
   cmd->add_option("--calib", args->calib,
                   "CAL.yml for the outlines (P1); default: the 'calib' OBJECTS.json names");
-  args->page.AddTo(cmd, "Serve the page at HOST:PORT (default 127.0.0.1:0: this machine only, "
-                        "any free port)");
+  args->page.AddTo(cmd,
+                   "Serve the page at HOST:PORT (default 127.0.0.1:0: this machine only, "
+                   "any free port)");
   cmd->add_option("--duration", args->duration_s, "Exit after this long (s; 0 = until a stop)")
       ->capture_default_str();
   cmd->callback([args] { RunView(*args); });

@@ -7,8 +7,8 @@
 
 #include <arpa/inet.h>
 #include <atomic>
-#include <chrono>
 #include <charconv>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -101,13 +101,18 @@ bool Authorized(const httplib::Request& request, const std::string& token) {
 
 const char* ReasonOf(int status) {
   switch (status) {
-    case 401: return "401 unauthorized: this page needs its token (?token=T or "
-                     "'Authorization: Bearer T')";
-    case 404: return "404 not found: the page is /, the API /api/status, /api/objects, "
-                     "/api/cycles, /api/left.png, /api/overlay.png";
-    case 405: return "405 method not allowed: the page is read-only (GET, HEAD)";
-    case 503: return "503 nothing published yet: the cell loop has not started";
-    default: return "error";
+    case 401:
+      return "401 unauthorized: this page needs its token (?token=T or "
+             "'Authorization: Bearer T')";
+    case 404:
+      return "404 not found: the page is /, the API /api/status, /api/objects, "
+             "/api/cycles, /api/left.png, /api/overlay.png";
+    case 405:
+      return "405 method not allowed: the page is read-only (GET, HEAD)";
+    case 503:
+      return "503 nothing published yet: the cell loop has not started";
+    default:
+      return "error";
   }
 }
 
@@ -183,8 +188,8 @@ struct CellPageServer::Impl {
     server.set_keep_alive_max_count(20);
     server.set_keep_alive_timeout(2);
     server.set_payload_max_length(64 * 1024);
-    server.set_default_headers({{"Cache-Control", "no-store"},
-                                {"X-Content-Type-Options", "nosniff"}});
+    server.set_default_headers(
+        {{"Cache-Control", "no-store"}, {"X-Content-Type-Options", "nosniff"}});
     server.set_pre_routing_handler(
         [this](const httplib::Request& request, httplib::Response& response) {
           if (!Authorized(request, options.token)) {
@@ -237,12 +242,11 @@ struct CellPageServer::Impl {
             response.set_content("404 no image yet (replayed objects have none)\n", "text/plain");
           } else {
             // The snapshot is held by the lambda until the body is sent; no copy of the PNG.
-            response.set_content_provider(
-                bytes.size(), "image/png",
-                [snapshot, &bytes](std::size_t offset, std::size_t length,
-                                   httplib::DataSink& sink) {
-                  return sink.write(bytes.data() + offset, length);
-                });
+            response.set_content_provider(bytes.size(), "image/png",
+                                          [snapshot, &bytes](std::size_t offset, std::size_t length,
+                                                             httplib::DataSink& sink) {
+                                            return sink.write(bytes.data() + offset, length);
+                                          });
           }
         }
       });

@@ -22,8 +22,8 @@ struct CellPageOptions {
   int port = 0;                    ///< 0 = any free port (CellPageServer::port() names it)
   /// When set, every request must carry it (`Authorization: Bearer T` or `?token=T`), else 401.
   std::string token;
-  int threads = 8;                 ///< HTTP worker threads (each serves one connection at a time)
-  int write_timeout_s = 5;         ///< a client that stops reading is dropped after this long
+  int threads = 8;          ///< HTTP worker threads (each serves one connection at a time)
+  int write_timeout_s = 5;  ///< a client that stops reading is dropped after this long
   /// Empty when usable; otherwise a one-line reason (bad port, non-loopback host without token).
   std::string Check() const;
 };

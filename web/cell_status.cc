@@ -15,16 +15,19 @@ namespace hnnstereo::web {
 namespace {
 
 double UnixNow() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 const char* AckName(robot::AckKind ack) {
   switch (ack) {
-    case robot::AckKind::kAcknowledged: return "acknowledged";
-    case robot::AckKind::kTimeout: return "ack timeout";
-    case robot::AckKind::kStop: return "stop";
-    case robot::AckKind::kPeerLost: return "peer lost";
+    case robot::AckKind::kAcknowledged:
+      return "acknowledged";
+    case robot::AckKind::kTimeout:
+      return "ack timeout";
+    case robot::AckKind::kStop:
+      return "stop";
+    case robot::AckKind::kPeerLost:
+      return "peer lost";
   }
   return "?";
 }
@@ -74,8 +77,8 @@ std::optional<PartPixels> PartInImage(const nlohmann::json& object,
     } else if (object.contains("top_rectangle")) {
       const auto& rectangle = object.at("top_rectangle");
       const double a = rectangle.at("yaw_deg").get<double>() * std::numbers::pi / 180.0;
-      const Eigen::Vector3d along(std::cos(a), std::sin(a), 0.0), across(-std::sin(a),
-                                                                         std::cos(a), 0.0);
+      const Eigen::Vector3d along(std::cos(a), std::sin(a), 0.0),
+          across(-std::sin(a), std::cos(a), 0.0);
       const Eigen::Vector3d middle(rectangle.at("centre").at(0).get<double>(),
                                    rectangle.at("centre").at(1).get<double>(), centre.z());
       const double half_length = 0.5 * rectangle.at("length").get<double>();
@@ -175,9 +178,9 @@ nlohmann::json CellState::StatusJson() const {
       {"image_version", image_version},
       {"time", unix_time_s},
       {"objects_cycle", objects_cycle},
-      {"image", left_image.empty() ? nlohmann::json(nullptr)
-                                   : nlohmann::json{{"width", left_image.cols},
-                                                    {"height", left_image.rows}}},
+      {"image", left_image.empty()
+                    ? nlohmann::json(nullptr)
+                    : nlohmann::json{{"width", left_image.cols}, {"height", left_image.rows}}},
       {"outlines", P1.has_value() && !left_image.empty()},
       {"parts", PartsJson()},
       {"counters",
@@ -284,7 +287,8 @@ const std::string& CellSnapshot::ObjectsText() const {
 }
 const std::string& CellSnapshot::LeftPng() const {
   return left_png_.Get([this] {
-    return state.left_image.empty() ? std::string() : EncodePng(vision::ToColour8(state.left_image));
+    return state.left_image.empty() ? std::string()
+                                    : EncodePng(vision::ToColour8(state.left_image));
   });
 }
 const std::string& CellSnapshot::OverlayPng() const {

@@ -49,14 +49,14 @@ class LazyBytes {
 
 /// Everything the page shows at one moment (plain data, copied by the recorder).
 struct CellState {
-  std::string mode = "serve";        ///< "serve" (the cell loop) or "view" (one pick result)
-  std::uint64_t version = 0;         ///< +1 per snapshot published
-  std::uint64_t image_version = 0;   ///< +1 whenever the objects and image change
-  double unix_time_s = 0.0;          ///< when it was published (wall clock)
+  std::string mode = "serve";       ///< "serve" (the cell loop) or "view" (one pick result)
+  std::uint64_t version = 0;        ///< +1 per snapshot published
+  std::uint64_t image_version = 0;  ///< +1 whenever the objects and image change
+  double unix_time_s = 0.0;         ///< when it was published (wall clock)
 
-  nlohmann::json objects;            ///< OBJECTS.json, exactly; null before the first sensing
-  int objects_cycle = 0;             ///< the cycle that sensed them (0: not from a cycle)
-  cv::Mat left_image;                ///< the image they were sensed on; may be empty
+  nlohmann::json objects;  ///< OBJECTS.json, exactly; null before the first sensing
+  int objects_cycle = 0;   ///< the cycle that sensed them (0: not from a cycle)
+  cv::Mat left_image;      ///< the image they were sensed on; may be empty
   std::optional<calib::ProjectionMatrix> P1;  ///< to draw the parts on it; empty: no outlines
   /// Per object id: what became of its pick in objects_cycle (absent: not offered to a link).
   std::map<int, robot::PickOutcome> outcomes;
@@ -71,7 +71,7 @@ struct CellState {
 
   // The link (absent in view mode).
   bool has_link = false;
-  std::string link_transport;        ///< the link's Describe()
+  std::string link_transport;  ///< the link's Describe()
   robot::LinkStats link_stats;
   std::uint32_t last_request_sequence = 0;  ///< of the last trigger served
   std::uint32_t last_result_sequence = 0;   ///< the request the last published result answers

@@ -3,7 +3,6 @@
 // at start; the cycle time with 50 clients polling the overlay and with clients that never read;
 // `view` on one pick result.
 #include <fcntl.h>
-#include <functional>
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <netinet/in.h>
@@ -11,6 +10,7 @@
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <functional>
 
 #include <algorithm>
 #include <atomic>
@@ -140,8 +140,8 @@ bool HaveChromium() { return std::system("command -v chromium > /dev/null 2>&1")
 class CellPageCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = (fs::temp_directory_path() / ("hnnstereo_cell_page_" + std::to_string(getpid())))
-               .string();
+    dir_ =
+        (fs::temp_directory_path() / ("hnnstereo_cell_page_" + std::to_string(getpid()))).string();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     const CliResult rendered = RunCli("render --seed 100 --out " + dir_ + "/scene");
@@ -248,9 +248,10 @@ TEST_F(CellPageCli, HeadlessChromiumShowsEveryPartAndTheOverlay) {
   }
   WaitForCycles(1, std::chrono::seconds(120));
   const std::string profile = dir_ + "/chromium-profile";
-  const std::string chromium = "timeout 180 chromium --headless --no-sandbox --disable-gpu "
-                               "--disable-dev-shm-usage --no-first-run --user-data-dir=" +
-                               profile + " --virtual-time-budget=15000 ";
+  const std::string chromium =
+      "timeout 180 chromium --headless --no-sandbox --disable-gpu "
+      "--disable-dev-shm-usage --no-first-run --user-data-dir=" +
+      profile + " --virtual-time-budget=15000 ";
   const std::string dom_path = dir_ + "/dom.html";
   ASSERT_EQ(std::system((chromium + "--dump-dom " + url_ + " > " + dom_path + " 2> " + dir_ +
                          "/chromium.log")
@@ -259,7 +260,8 @@ TEST_F(CellPageCli, HeadlessChromiumShowsEveryPartAndTheOverlay) {
       << ReadFile(dir_ + "/chromium.log");
   const std::string dom = ReadFile(dom_path);
   EXPECT_NE(dom.find("data-ready=\"1\""), std::string::npos) << "the page never rendered";
-  EXPECT_TRUE(std::regex_search(dom, std::regex(R"re(<img[^>]*id="overlay"[^>]*data-loaded="1")re")))
+  EXPECT_TRUE(
+      std::regex_search(dom, std::regex(R"re(<img[^>]*id="overlay"[^>]*data-loaded="1")re")))
       << "the overlay image did not load";
   std::map<int, double> rows;
   const std::regex row(R"re(<tr[^>]*class="part"[^>]*>)re");
@@ -314,7 +316,8 @@ LoadComparison CompareCycleTimes(const std::function<std::vector<double>(int)>& 
     stop_load();
   }
   LoadComparison result{Median(without), Median(with), 0.0};
-  if (result.median_without_ms > 0.0) result.ratio = result.median_with_ms / result.median_without_ms;
+  if (result.median_without_ms > 0.0)
+    result.ratio = result.median_with_ms / result.median_without_ms;
   return result;
 }
 
@@ -347,10 +350,11 @@ TEST_F(CellPageCli, FiftyClientsPollingTheOverlayKeepTheCycleTime) {
     const auto start = Clock::now();
     served = 0;
     const LoadComparison result = CompareCycleTimes(NextCycleTimes, start_clients, stop_clients);
-    std::printf("attempt %d: cycle time median %.0f ms without clients, %.0f ms with 50 clients "
-                "polling /api/overlay.png (%ld images served, %.1f s): ratio %.3f\n",
-                attempt, result.median_without_ms, result.median_with_ms, served.load(),
-                std::chrono::duration<double>(Clock::now() - start).count(), result.ratio);
+    std::printf(
+        "attempt %d: cycle time median %.0f ms without clients, %.0f ms with 50 clients "
+        "polling /api/overlay.png (%ld images served, %.1f s): ratio %.3f\n",
+        attempt, result.median_without_ms, result.median_with_ms, served.load(),
+        std::chrono::duration<double>(Clock::now() - start).count(), result.ratio);
     std::fflush(stdout);
     ASSERT_GT(result.ratio, 0.0) << "no cycle times";
     EXPECT_GT(served.load(), 50) << "the clients were not served";
@@ -390,9 +394,10 @@ TEST_F(CellPageCli, ClientsThatNeverReadDoNotSlowTheLoop) {
   LoadComparison best;
   for (int attempt = 1; attempt <= 3; ++attempt) {
     const LoadComparison result = CompareCycleTimes(NextCycleTimes, start_stuck, stop_stuck);
-    std::printf("attempt %d: cycle time median %.0f ms without, %.0f ms with 10 clients that "
-                "never read: ratio %.3f\n",
-                attempt, result.median_without_ms, result.median_with_ms, result.ratio);
+    std::printf(
+        "attempt %d: cycle time median %.0f ms without, %.0f ms with 10 clients that "
+        "never read: ratio %.3f\n",
+        attempt, result.median_without_ms, result.median_with_ms, result.ratio);
     std::fflush(stdout);
     ASSERT_GT(result.ratio, 0.0) << "no cycle times";
     if (attempt == 1 || result.ratio < best.ratio) best = result;
@@ -418,8 +423,7 @@ TEST_F(CellPageStart, ANonLoopbackBindWithoutATokenIsRefusedAtStart) {
   for (const char* address : {"0.0.0.0:0", "[::]:0"}) {
     const CliResult refused = RunCli("serve" + replay + " --cycles 1 --http " + address);
     EXPECT_NE(refused.exit_code, 0) << refused.output;
-    EXPECT_NE(refused.output.find("hnnstereo: error: --http"), std::string::npos)
-        << refused.output;
+    EXPECT_NE(refused.output.find("hnnstereo: error: --http"), std::string::npos) << refused.output;
     EXPECT_NE(refused.output.find("--http-token"), std::string::npos) << refused.output;
     EXPECT_FALSE(fs::exists(Path("picks.jsonl"))) << "the link opened before the check";
   }
@@ -473,12 +477,12 @@ TEST_F(CellPageStart, WithATokenEveryRequestWithoutItGets401) {
 TEST_F(CellPageStart, ViewShowsOnePickResult) {
   ASSERT_EQ(RunCli("render --seed 3 --objects 3 --out " + Path("s")).exit_code, 0);
   const CliResult picked =
-      RunCli("pick --left " + Path("s/left.png") + " --right " + Path("s/right.png") +
-             " --calib " + Path("s/calib.yml") + " --out " + Path("o.json") + " --quiet");
+      RunCli("pick --left " + Path("s/left.png") + " --right " + Path("s/right.png") + " --calib " +
+             Path("s/calib.yml") + " --out " + Path("o.json") + " --quiet");
   ASSERT_EQ(picked.exit_code, 0) << picked.output;
-  BackgroundCli view("view --objects " + Path("o.json") + " --left " + Path("s/left.png") +
-                         " --duration 60",
-                     Path("view.log"));
+  BackgroundCli view(
+      "view --objects " + Path("o.json") + " --left " + Path("s/left.png") + " --duration 60",
+      Path("view.log"));
   const auto url = view.WaitForLine("http: ", std::chrono::seconds(60));
   ASSERT_TRUE(url) << view.Output();
   httplib::Client client("127.0.0.1", PortOf(*url));
@@ -496,9 +500,9 @@ TEST_F(CellPageStart, ViewShowsOnePickResult) {
   ASSERT_TRUE(overlay);
   EXPECT_EQ(overlay->status, 200);
   EXPECT_EQ(view.Stop(), 0) << view.Output();
-  EXPECT_NE(RunCli("view --objects " + Path("missing.json") + " --left " + Path("s/left.png"))
-                .exit_code,
-            0);
+  EXPECT_NE(
+      RunCli("view --objects " + Path("missing.json") + " --left " + Path("s/left.png")).exit_code,
+      0);
 }
 
 }  // namespace

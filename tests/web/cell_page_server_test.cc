@@ -3,11 +3,11 @@
 // is not held up by a client that never reads.
 #include "web/cell_page_server.h"
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
-#include <sys/socket.h>
 #include <netinet/in.h>
-#include <arpa/inet.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -192,8 +192,7 @@ TEST(CellPageOptions, ANonLoopbackBindNeedsAToken) {
 }
 
 TEST(CellPageOptions, MalformedAddressesAreRefused) {
-  for (const char* address : {"", "127.0.0.1", "127.0.0.1:", "127.0.0.1:http", "h:70000",
-                              "h:-1"}) {
+  for (const char* address : {"", "127.0.0.1", "127.0.0.1:", "127.0.0.1:http", "h:70000", "h:-1"}) {
     EXPECT_THROW(ParseHttpAddress(address), std::invalid_argument) << address;
   }
   EXPECT_EQ(ParseHttpAddress(":8080").host, "127.0.0.1");
@@ -280,9 +279,10 @@ TEST_F(CellPageServerTest, AClientThatNeverReadsDoesNotHoldUpPublishing) {
     const auto start = std::chrono::steady_clock::now();
     recorder.SetSensed(TwoParts(), left, DownwardCamera());
     recorder.PublishNow();
-    worst_ms = std::max(worst_ms, std::chrono::duration<double, std::milli>(
-                                      std::chrono::steady_clock::now() - start)
-                                      .count());
+    worst_ms =
+        std::max(worst_ms,
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                     .count());
   }
   EXPECT_LT(worst_ms, 250.0) << "publishing waited for a stuck client";
   // Other clients are still served meanwhile.
