@@ -168,6 +168,7 @@ struct CellPageServer::Impl {
   CellPageOptions options;
   httplib::Server server;
   int port = 0;
+  int listening_socket = -1;  ///< the last socket httplib made for binding
   std::thread thread;
   std::atomic<bool> listener_done{false};
 
@@ -188,6 +189,11 @@ struct CellPageServer::Impl {
     server.set_keep_alive_max_count(20);
     server.set_keep_alive_timeout(2);
     server.set_payload_max_length(64 * 1024);
+    server.set_socket_options([this](socket_t socket) {
+      const int yes = 1;  // httplib's default options, which this callback replaces
+      setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+      listening_socket = socket;
+    });
     server.set_default_headers(
         {{"Cache-Control", "no-store"}, {"X-Content-Type-Options", "nosniff"}});
     server.set_pre_routing_handler(
@@ -268,6 +274,9 @@ CellPageServer::CellPageServer(const CellStatusBoard& board, CellPageOptions opt
   } else {
     impl_->port = -1;
   }
+  // Debian's libcpp-httplib 0.11 listens with a backlog of 5: 50 clients connecting at once would
+  // see their connections dropped. A second listen() on Linux only raises the backlog.
+  if (impl_->port > 0 && impl_->listening_socket >= 0) ::listen(impl_->listening_socket, 256);
   if (impl_->port <= 0) {
     throw std::runtime_error("--http: cannot listen on " + impl_->options.host + ":" +
                              std::to_string(impl_->options.port) +
