@@ -471,6 +471,20 @@ TEST_F(CellPageStart, WithATokenEveryRequestWithoutItGets401) {
   auto image = client.Get("/api/overlay.png?token=cell-7f3a");
   ASSERT_TRUE(image);
   EXPECT_EQ(image->status, 404) << "no image yet";
+  if (HaveChromium()) {
+    // The page opened as /?token=T passes the token on to its API requests.
+    const std::string dom = Path("dom.html");
+    ASSERT_EQ(
+        std::system(("timeout 180 chromium --headless --no-sandbox --disable-gpu "
+                     "--disable-dev-shm-usage --no-first-run --user-data-dir=" +
+                     Path("profile") + " --virtual-time-budget=8000 --dump-dom 'http://127.0.0.1:" +
+                     std::to_string(PortOf(*url)) + "/?token=cell-7f3a' > " + dom + " 2> /dev/null")
+                        .c_str()),
+        0);
+    const std::string page = ReadFile(dom);
+    EXPECT_NE(page.find("data-ready=\"1\""), std::string::npos) << page;
+    EXPECT_NE(page.find("vision-server://"), std::string::npos) << "the link's row";
+  }
   EXPECT_EQ(serve.Stop(), 0) << serve.Output();
 }
 
