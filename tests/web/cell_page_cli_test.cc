@@ -276,6 +276,8 @@ TEST_F(CellPageCli, HeadlessChromiumShowsEveryPartAndTheOverlay) {
   }
   const nlohmann::json picked = ObjectsOfPick();
   EXPECT_EQ(rows.size(), picked.size()) << dom;
+  const auto truth = nlohmann::json::parse(ReadFile(dir_ + "/scene/truth.json"))["objects"];
+  EXPECT_EQ(rows.size(), truth.size()) << "every part of the scene has its row";
   for (const nlohmann::json& object : picked) {
     const int id = object["id"].get<int>();
     ASSERT_TRUE(rows.count(id)) << "no row for part " << id;
