@@ -92,9 +92,8 @@ void RunServe(ServeArgs& args) {
       return robot::SensedCycle{SensedObjectsOf(pair.report), capture_time_s};
     };
   } else {
-    const std::string replayed_text = ReadText(args.replay);
-    replayed = robot::SensedObjectsFromJson(replayed_text);
-    if (status) replayed_file = nlohmann::json::parse(replayed_text);
+    replayed = robot::SensedObjectsFromJson(ReadText(args.replay));
+    if (status) replayed_file = nlohmann::json::parse(ReadText(args.replay));
     sense = [&] {
       if (status) status->SetSensed(replayed_file, {}, {});
       return robot::SensedCycle{replayed, SteadySeconds()};
@@ -107,6 +106,12 @@ void RunServe(ServeArgs& args) {
     }
   }
   robot::RobotFrame frame;
+  // The page binds before the link opens: an address in use fails before a PLC sees anything.
+  std::unique_ptr<web::CellPageServer> page_server;
+  if (page) {
+    status->PublishNow();
+    page_server = StartCellPage(board, *page);
+  }
   std::unique_ptr<robot::RobotLink> link = args.link.Open(&frame);
 
   robot::CellLoopOptions loop = args.link.LoopOptions();
@@ -116,7 +121,6 @@ void RunServe(ServeArgs& args) {
   loop.on_cycle = PrintCycleLine;
   std::printf("link: %s\n", link->Describe().c_str());
   std::fflush(stdout);
-  std::unique_ptr<web::CellPageServer> page_server;
   if (status) {
     loop.on_cycle = [&](const robot::CycleLog& log) {
       PrintCycleLine(log);
@@ -124,7 +128,6 @@ void RunServe(ServeArgs& args) {
     };
     loop.on_idle = [&] { status->RecordLink(*link); };
     status->PublishNow(link.get());
-    page_server = StartCellPage(board, *page);
   }
   const robot::CellLoopReport report = robot::RunCellLoop(*link, frame, sense, loop);
   const nlohmann::json json = CellLoopReportJson(report);

@@ -429,6 +429,22 @@ TEST_F(CellPageStart, ANonLoopbackBindWithoutATokenIsRefusedAtStart) {
     EXPECT_NE(refused.output.find("--http-token"), std::string::npos) << refused.output;
     EXPECT_FALSE(fs::exists(Path("picks.jsonl"))) << "the link opened before the check";
   }
+  // An address in use: refused before the link opens too.
+  const int holder = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(bind(holder, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  ASSERT_EQ(listen(holder, 1), 0);
+  socklen_t length = sizeof address;
+  getsockname(holder, reinterpret_cast<sockaddr*>(&address), &length);
+  const CliResult in_use = RunCli(
+      "serve" + replay + " --cycles 1 --http 127.0.0.1:" + std::to_string(ntohs(address.sin_port)));
+  close(holder);
+  EXPECT_NE(in_use.exit_code, 0) << in_use.output;
+  EXPECT_NE(in_use.output.find("hnnstereo: error: --http: cannot listen"), std::string::npos)
+      << in_use.output;
+  EXPECT_FALSE(fs::exists(Path("picks.jsonl"))) << "the link opened before the page failed";
   for (const char* bad : {"--http 127.0.0.1", "--http 127.0.0.1:99999", "--http-token t"}) {
     const CliResult refused = RunCli("serve" + replay + " --cycles 1 " + bad);
     EXPECT_NE(refused.exit_code, 0) << bad << refused.output;
