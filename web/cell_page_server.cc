@@ -13,6 +13,7 @@
 #include <deque>
 #include <functional>
 #include <list>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 
@@ -133,6 +134,7 @@ std::string CellPageOptions::Check() const {
   if (port < 0 || port > 65535) return "--http: port " + std::to_string(port) + " not in 0..65535";
   if (threads < 1) return "http threads must be >= 1";
   if (write_timeout_s < 1) return "http write timeout must be >= 1 s";
+  if (!(max_images_per_second >= 0.0)) return "max_images_per_second must be >= 0";
   if (!IsLoopbackHost(host) && token.empty()) {
     return "--http " + host + ":" + std::to_string(port) +
            " is reachable from other machines: give --http-token T (requests without it get "
@@ -169,6 +171,23 @@ struct CellPageServer::Impl {
   httplib::Server server;
   int port = 0;
   int listening_socket = -1;  ///< the last socket httplib made for binding
+  std::mutex image_pace_mutex;
+  std::chrono::steady_clock::time_point next_image_slot{};
+
+  // Waits for this answer's turn under max_images_per_second (on the HTTP thread, never the
+  // loop's).
+  void PaceImages() {
+    if (!(options.max_images_per_second > 0.0)) return;
+    const auto interval = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(1.0 / options.max_images_per_second));
+    std::chrono::steady_clock::time_point slot;
+    {
+      std::lock_guard lock(image_pace_mutex);
+      slot = std::max(std::chrono::steady_clock::now(), next_image_slot);
+      next_image_slot = slot + interval;
+    }
+    std::this_thread::sleep_until(slot);
+  }
   std::thread thread;
   std::atomic<bool> listener_done{false};
 
@@ -241,6 +260,7 @@ struct CellPageServer::Impl {
     });
     auto png_route = [this](const char* path, const std::string& (CellSnapshot::*png)() const) {
       server.Get(path, [this, png](const httplib::Request&, httplib::Response& response) {
+        PaceImages();
         if (auto snapshot = Latest(response)) {
           const std::string& bytes = ((*snapshot).*png)();
           if (bytes.empty()) {

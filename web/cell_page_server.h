@@ -24,6 +24,11 @@ struct CellPageOptions {
   std::string token;
   int threads = 8;          ///< HTTP worker threads (each serves one connection at a time)
   int write_timeout_s = 5;  ///< a client that stops reading is dropped after this long
+  /// At most this many PNG answers a second over all clients (the rest wait their turn): bounds
+  /// the page's total work - encoding, copying, the kernel's sends - however many clients poll
+  /// as fast as they can. The image changes once a cycle, so 50 viewers refreshing every second
+  /// fit. 0 = no limit.
+  double max_images_per_second = 50.0;
   /// Empty when usable; otherwise a one-line reason (bad port, non-loopback host without token).
   std::string Check() const;
 };
