@@ -6,6 +6,7 @@
 namespace hnnstereo::app {
 
 void AddMatchCommand(CLI::App& app);
+void AddViewCommand(CLI::App& app);
 void AddBenchCommand(CLI::App& app);
 void AddCalibrateCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
@@ -15,6 +16,5 @@ void AddProbeCommand(CLI::App& app);
 void AddEvalCommand(CLI::App& app);
 void AddServeCommand(CLI::App& app);
 void AddRobotCommand(CLI::App& app);
-void AddViewCommand(CLI::App& app);
 
 }  // namespace hnnstereo::app
