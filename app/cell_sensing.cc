@@ -105,6 +105,20 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
   return pair;
 }
 
+nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& flags,
+                               const std::string& left_path, const std::string& right_path,
+                               const std::string& calibration_path) {
+  nlohmann::json json = vision::ObjectsJson(pair.report, flags.sensing);
+  json["left"] = left_path;
+  json["right"] = right_path;
+  json["calib"] = calibration_path;
+  return json;
+}
+
+cv::Mat OverlayImageOf(const SensedPair& pair) {
+  return pair.left_grey.data == pair.left.grey.data ? pair.left.original : pair.left_grey;
+}
+
 std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report) {
   std::vector<robot::SensedObject> objects;
   int id = 1;

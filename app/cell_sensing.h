@@ -3,6 +3,7 @@
 // position-sensing options as command-line flags, and one call from image files to parts.
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -42,6 +43,15 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
                          const calib::StereoCalibration& calibration,
                          const std::string& calibration_name, const CellSensingFlags& flags,
                          ocl::Runtime* runtime);
+
+/// OBJECTS.json as `pick` writes it: the report's objects and figures, and the input files.
+nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& flags,
+                               const std::string& left_path, const std::string& right_path,
+                               const std::string& calibration_path);
+
+/// The left image the parts were sensed on, for overlays: as stored, or undistorted when the
+/// calibration carries distortion (P1 then refers to undistorted pixels).
+cv::Mat OverlayImageOf(const SensedPair& pair);
 
 /// The robot side's view of the parts (ids 1.. in the report's order, tallest first).
 std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report);

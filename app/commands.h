@@ -6,6 +6,7 @@
 namespace hnnstereo::app {
 
 void AddMatchCommand(CLI::App& app);
+void AddViewCommand(CLI::App& app);
 void AddBenchCommand(CLI::App& app);
 void AddCalibrateCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);

@@ -91,6 +91,7 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddPickCommand(app);
   hnnstereo::app::AddServeCommand(app);
   hnnstereo::app::AddRobotCommand(app);
+  hnnstereo::app::AddViewCommand(app);
   hnnstereo::app::AddDemoCommand(app);
   hnnstereo::app::AddProbeCommand(app);
   hnnstereo::app::AddDevicesCommand(app);

@@ -11,12 +11,14 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "app/cell_page_flags.h"
 #include "app/cell_sensing.h"
 #include "app/cli_support.h"
 #include "app/commands.h"
 #include "app/robot_link_flags.h"
 #include "calib/atomic_file.h"
 #include "robot/cell_loop.h"
+#include "web/cell_status.h"
 
 namespace hnnstereo::app {
 namespace {
@@ -28,6 +30,7 @@ struct ServeArgs {
   std::string config;  // consumed by ExpandConfigArguments in main
   CellSensingFlags cell;
   RobotLinkFlags link;
+  CellPageFlags page;
 };
 
 double SteadySeconds() {
@@ -55,12 +58,18 @@ void RunServe(ServeArgs& args) {
     throw std::invalid_argument("--replay replaces sensing: drop --left/--right/--calib/--capture");
   }
   if (args.link.robot.empty()) args.link.robot = "dryrun:picks.jsonl";
+  const std::optional<web::CellPageOptions> page = args.page.Resolve();
+  // The page reads snapshots the loop publishes after each cycle (web/cell_status.h).
+  web::CellStatusBoard board;
+  std::optional<web::CellStatusRecorder> status;
+  if (page) status.emplace(&board, "serve");
 
   // Everything that can be checked is checked before the link opens (a PLC sees no half-started
   // server): the sensing flags, the calibration, the replayed objects, the frame.
   robot::SenseFunction sense;
   calib::StereoCalibration calibration;
   std::vector<robot::SensedObject> replayed;
+  nlohmann::json replayed_file;
   std::unique_ptr<ocl::Runtime> runtime;
   if (sensing) {
     args.cell.Resolve();
@@ -78,14 +87,28 @@ void RunServe(ServeArgs& args) {
       const double capture_time_s = SteadySeconds();
       const SensedPair pair = SenseCellPair(args.left, args.right, calibration, args.calib,
                                             args.cell, runtime.get());
+      if (status) {
+        status->SetSensed(ObjectsFileJson(pair, args.cell, args.left, args.right, args.calib),
+                          OverlayImageOf(pair), calibration.P1);
+      }
       return robot::SensedCycle{SensedObjectsOf(pair.report), capture_time_s};
     };
   } else {
     replayed = robot::SensedObjectsFromJson(ReadText(args.replay));
-    sense = [&] { return robot::SensedCycle{replayed, SteadySeconds()}; };
+    if (status) replayed_file = nlohmann::json::parse(ReadText(args.replay));
+    sense = [&] {
+      if (status) status->SetSensed(replayed_file, {}, {});
+      return robot::SensedCycle{replayed, SteadySeconds()};
+    };
   }
   CheckOutputsWritable({{"--report", args.report}});
   robot::RobotFrame frame;
+  // The page binds before the link opens: an address in use fails before a PLC sees anything.
+  std::unique_ptr<web::CellPageServer> page_server;
+  if (page) {
+    status->PublishNow();
+    page_server = StartCellPage(board, *page);
+  }
   std::unique_ptr<robot::RobotLink> link = args.link.Open(&frame);
 
   robot::CellLoopOptions loop = args.link.LoopOptions();
@@ -95,6 +118,14 @@ void RunServe(ServeArgs& args) {
   loop.on_cycle = PrintCycleLine;
   std::printf("link: %s\n", link->Describe().c_str());
   std::fflush(stdout);
+  if (status) {
+    loop.on_cycle = [&](const robot::CycleLog& log) {
+      PrintCycleLine(log);
+      status->RecordCycle(log, *link);
+    };
+    loop.on_idle = [&] { status->RecordLink(*link); };
+    status->PublishNow(link.get());
+  }
   const robot::CellLoopReport report = robot::RunCellLoop(*link, frame, sense, loop);
   const nlohmann::json json = CellLoopReportJson(report);
   std::printf("served %d cycles: %d poses sent, %d refused, %d sensing errors, %d ack timeouts, "
@@ -142,6 +173,9 @@ void AddServeCommand(CLI::App& app) {
                    "modbus-server://HOST:PORT, modbus-client://HOST:PORT, "
                    "vision-server://HOST:PORT, serial:DEVICE?baud=2400 (port 0 = any free port)",
                    true);
+  args->page.AddTo(cmd,
+                   "Also serve the cell's web page and /api/* at HOST:PORT (127.0.0.1:0 = this "
+                   "machine only, any free port; printed as 'http: URL'); docs/robot.md");
   args->cell.AddTo(cmd);
   cmd->add_option("--config", args->config,
                   "YAML file of options: 'long-option-name: value' per line; the command line "

@@ -41,6 +41,7 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
       break;
     }
     if (trigger.kind == TriggerKind::kIdle) {
+      if (options.on_idle) options.on_idle();
       if (options.idle_limit.count() > 0 &&
           std::chrono::steady_clock::now() - idle_since > options.idle_limit) {
         report.idle_timeout = true;
@@ -70,6 +71,7 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
       cycle.status = kErrorSensingFailed;
       cycle.error = error.what();
     }
+    const auto publish_start = std::chrono::steady_clock::now();
     const int transport_refused_before = link.Stats().transport_refused;
     const PublishReport published = link.Publish(cycle);
     // Picks the transport itself refused (admitted by the gate) are not "sent".
@@ -84,7 +86,11 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
                     : cycle.error;
     report.poses_published += log.published;
     report.refused += log.refused;
+    log.picks = published.outcomes;
+    const auto ack_start = std::chrono::steady_clock::now();
+    log.publish_ms = std::chrono::duration<double, std::milli>(ack_start - publish_start).count();
     log.ack = link.WaitForAcknowledge(options.ack_timeout);
+    log.ack_ms = MillisecondsSince(ack_start);
     if (log.ack == AckKind::kTimeout) ++report.ack_timeouts;
     if (log.ack == AckKind::kPeerLost) ++report.peer_lost;
     log.cycle_ms = MillisecondsSince(cycle_start);

@@ -34,7 +34,10 @@ struct CycleLog {
   std::string error;
   AckKind ack = AckKind::kAcknowledged;
   double sense_ms = 0.0;
+  double publish_ms = 0.0;             ///< the safety gate and the transport's send
+  double ack_ms = 0.0;                 ///< waiting for the acknowledge
   double cycle_ms = 0.0;               ///< trigger to acknowledge
+  std::vector<PickOutcome> picks;      ///< each candidate pick: sent or refused and why
 };
 
 struct CellLoopOptions {
@@ -48,6 +51,9 @@ struct CellLoopOptions {
   PickPlanningOptions planning;
   const std::atomic<bool>* stop_requested = nullptr;  ///< e.g. set by SIGINT; may be null
   std::function<void(const CycleLog&)> on_cycle;      ///< called after every cycle; may be empty
+  /// Called after each trigger poll that brought no trigger (about every trigger_poll), so a
+  /// status display can follow the link between cycles; may be empty.
+  std::function<void()> on_idle;
   std::string Check() const;
 };
 

@@ -120,13 +120,18 @@ PublishReport RobotLink::Publish(CycleResult cycle) {
   std::vector<PickCommand> admitted;
   for (PickCommand& pick : cycle.picks) {
     if (auto refusal = gate_.Admit(&pick)) {
+      report.outcomes.push_back({pick.object_id, pick.sequence, false, *refusal});
       ++report.refused;
       report.refusals.push_back("object " + std::to_string(pick.object_id) + " (sequence " +
                                 std::to_string(pick.sequence) + ") refused: " + *refusal);
       Log(report.refusals.back());
     } else if (static_cast<int>(admitted.size()) < options_.max_poses) {
+      report.outcomes.push_back({pick.object_id, pick.sequence, true, ""});
       admitted.push_back(pick);
     } else {
+      report.outcomes.push_back({pick.object_id, pick.sequence, false,
+                                 "more than max_poses " + std::to_string(options_.max_poses) +
+                                     " in one cycle"});
       ++report.refused;
       report.refusals.push_back("object " + std::to_string(pick.object_id) +
                                 " not sent: more than max_poses " +

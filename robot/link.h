@@ -13,6 +13,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -78,10 +79,19 @@ struct CycleResult {
   std::vector<PickCommand> picks;
 };
 
+/// What became of one candidate pick in Publish.
+struct PickOutcome {
+  int object_id = 0;
+  std::uint32_t sequence = 0;
+  bool admitted = false;  ///< passed the safety gate and handed to the transport
+  std::string reason;     ///< why not, when refused
+};
+
 struct PublishReport {
   int admitted = 0;
   int refused = 0;
   std::vector<std::string> refusals;  ///< one line per refused pick
+  std::vector<PickOutcome> outcomes;  ///< one per candidate pick, in the cycle's order
 };
 
 struct LinkStats {
@@ -96,6 +106,10 @@ struct LinkStats {
   /// Picks the gate admitted but the transport could not carry (e.g. beyond the thesis arm's
   /// reach): logged, never partly sent.
   int transport_refused = 0;
+  /// Whether a peer is connected now; empty where the transport cannot tell (dry run, serial).
+  std::optional<bool> peer_connected;
+  /// Steady-clock seconds when the peer was last heard (a request or a reply); 0 = never/unknown.
+  double peer_heard_steady_s = 0.0;
 };
 
 class RobotLink {

@@ -41,6 +41,10 @@ namespace hnnstereo::robot {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+double SteadyNowSeconds() {
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
 using std::chrono::milliseconds;
 namespace mb = modbus;
 
@@ -230,7 +234,10 @@ class ModbusServerLink final : public RobotLink {
 
   LinkStats Stats() const override {
     std::lock_guard lock(mutex_);
-    return stats_;
+    LinkStats stats = stats_;
+    stats.peer_connected = !live_connections_.empty();
+    stats.peer_heard_steady_s = peer_heard_steady_s_;
+    return stats;
   }
 
  protected:
@@ -436,6 +443,7 @@ class ModbusServerLink final : public RobotLink {
     }
     const bool writes_command = WritesCommandRegister(request + header, length - header);
     std::lock_guard lock(mutex_);
+    peer_heard_steady_s_ = SteadyNowSeconds();
     modbus_reply(context_, request, length, mapping_);
     if (!writes_command) return;
     const std::uint16_t command = mapping_->tab_registers[mb::kCommandRegister];
@@ -557,6 +565,7 @@ class ModbusServerLink final : public RobotLink {
   std::set<int> live_connections_;
   int trigger_owner_ = -1;    ///< connection that sent the trigger being served
   bool owner_lost_ = false;   ///< ... and has disconnected since
+  double peer_heard_steady_s_ = 0.0;  ///< the last request answered (steady clock, s)
   bool result_pending_ = false;  ///< a result is in the registers, not yet acknowledged
   bool result_dropped_ = false;  ///< the last result was dropped on a reconnect
   std::uint16_t served_sequence_ = 0;
@@ -711,7 +720,10 @@ class ModbusClientLink final : public RobotLink {
 
   LinkStats Stats() const override {
     std::lock_guard lock(mutex_);
-    return stats_;
+    LinkStats stats = stats_;
+    stats.peer_connected = connected_;
+    stats.peer_heard_steady_s = peer_heard_steady_s_;
+    return stats;
   }
 
  protected:
@@ -833,7 +845,10 @@ class ModbusClientLink final : public RobotLink {
 
   bool ReadLocked(int address, int count, std::uint16_t* words) {
     if (!EnsureConnectedLocked()) return false;
-    if (modbus_read_registers(context_, address, count, words) == count) return true;
+    if (modbus_read_registers(context_, address, count, words) == count) {
+      peer_heard_steady_s_ = SteadyNowSeconds();
+      return true;
+    }
     LostLocked("reading registers " + std::to_string(address) + ".." +
                std::to_string(address + count - 1));
     return false;
@@ -841,7 +856,10 @@ class ModbusClientLink final : public RobotLink {
 
   bool WriteBlockLocked(int address, const std::uint16_t* words, int count) {
     if (!EnsureConnectedLocked()) return false;
-    if (modbus_write_registers(context_, address, count, words) == count) return true;
+    if (modbus_write_registers(context_, address, count, words) == count) {
+      peer_heard_steady_s_ = SteadyNowSeconds();
+      return true;
+    }
     LostLocked("writing registers " + std::to_string(address) + ".." +
                std::to_string(address + count - 1));
     return false;
@@ -893,6 +911,7 @@ class ModbusClientLink final : public RobotLink {
   std::condition_variable stop_changed_;
   modbus_t* context_ = nullptr;
   bool connected_ = false;
+  double peer_heard_steady_s_ = 0.0;  ///< the last read or write that succeeded
   bool stopping_ = false;
   milliseconds backoff_;
   Clock::time_point next_attempt_{};

@@ -162,7 +162,14 @@ class VisionServerLink final : public RobotLink {
     stop_requested_ = true;  // the loop's next call drops the pending poses and reports a stop
   }
 
-  LinkStats Stats() const override { return stats_; }
+  LinkStats Stats() const override {
+    LinkStats stats = stats_;
+    stats.peer_connected = client_fd_ >= 0;
+    stats.peer_heard_steady_s =
+        heard_ == Clock::time_point{} ? 0.0
+                                      : std::chrono::duration<double>(heard_.time_since_epoch()).count();
+    return stats;
+  }
 
  protected:
   void Send(const CycleResult& admitted) override {
@@ -263,6 +270,7 @@ class VisionServerLink final : public RobotLink {
       char buffer[512];
       const ssize_t n = recv(client_fd_, buffer, sizeof buffer, MSG_DONTWAIT);
       if (n > 0) {
+        heard_ = Clock::now();
         if (input_.empty()) partial_since_ = Clock::now();
         input_.append(buffer, static_cast<std::size_t>(n));
         // Only the unterminated tail counts against the line limit.
@@ -354,6 +362,7 @@ class VisionServerLink final : public RobotLink {
   int client_fd_ = -1;
   std::string input_;                 ///< bytes received, not yet a complete request
   Clock::time_point partial_since_{};
+  Clock::time_point heard_{};  ///< when the robot last sent anything
   std::deque<PickCommand> pending_;   ///< admitted poses not yet sent (NEXT serves them)
   AckKind last_ack_ = AckKind::kPeerLost;
   std::uint32_t request_sequence_ = 0;

@@ -7,8 +7,9 @@ cd "$(dirname "$0")/.."
 PACKAGES=(cmake g++ ninja-build pkg-config
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libopencv-dev libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev
-  libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat)
+  libcli11-dev nlohmann-json3-dev libcpp-httplib-dev
+  libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
+  chromium)  # chromium: only the web page's browser test (tests/app/cell_page_cli_test.cc)
 
 missing=()
 for package in "${PACKAGES[@]}"; do

@@ -214,6 +214,41 @@ TEST(CellLoop, TheGateInPublishDropsUnsafePicksAndFlagsACycleWithNoneLeft) {
   }
 }
 
+// What a status display (the cell's web page) reads of each cycle: every candidate pick sent or
+// refused with the gate's reason, the times of the cycle's phases, and a call while idle.
+TEST(CellLoop, LogsEachPicksOutcomeThePhaseTimesAndCallsOnIdle) {
+  LinkOptions link_options = QuietOptions();
+  link_options.max_poses = 1;
+  FakeLink link(SafetyGate(SafetyLimits{}, true), link_options);
+  link.triggers = {{TriggerKind::kIdle, 0}, {TriggerKind::kIdle, 0}, {TriggerKind::kTrigger, 3}};
+  const SenseFunction sense = [] {
+    return SensedCycle{{{1, {0, 900, 50}, 50, 0}, {2, {0, 0, 40}, 40, 0}, {3, {10, 0, 30}, 30, 0}},
+                       0.0};
+  };
+  CellLoopOptions options;
+  int idle_calls = 0;
+  std::vector<CycleLog> logs;
+  options.on_idle = [&] { ++idle_calls; };
+  options.on_cycle = [&](const CycleLog& log) { logs.push_back(log); };
+  RunCellLoop(link, RobotFrame{}, sense, options);
+  EXPECT_EQ(idle_calls, 2);
+  ASSERT_EQ(logs.size(), 1u);
+  const CycleLog& log = logs[0];
+  ASSERT_EQ(log.picks.size(), 3u) << "one outcome per candidate, tallest first";
+  EXPECT_EQ(log.picks[0].object_id, 1);
+  EXPECT_FALSE(log.picks[0].admitted);
+  EXPECT_NE(log.picks[0].reason.find("workspace"), std::string::npos) << log.picks[0].reason;
+  EXPECT_EQ(log.picks[1].object_id, 2);
+  EXPECT_TRUE(log.picks[1].admitted);
+  EXPECT_EQ(log.picks[1].reason, "");
+  EXPECT_EQ(log.picks[2].object_id, 3);
+  EXPECT_FALSE(log.picks[2].admitted);
+  EXPECT_NE(log.picks[2].reason.find("max_poses"), std::string::npos) << log.picks[2].reason;
+  EXPECT_GE(log.publish_ms, 0.0);
+  EXPECT_GE(log.ack_ms, 0.0);
+  EXPECT_LE(log.sense_ms + log.publish_ms + log.ack_ms, log.cycle_ms + 1e-6);
+}
+
 TEST(CellLoop, HonoursTheStopFlagAndTheCycleCount) {
   FakeLink link(SafetyGate(SafetyLimits{}, true), QuietOptions());
   for (std::uint32_t r = 1; r <= 10; ++r) link.triggers.push_back({TriggerKind::kTrigger, r});
