@@ -8,7 +8,8 @@ PACKAGES=(cmake g++ ninja-build pkg-config
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libopencv-dev libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev
-  libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat)
+  libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
+  python3-dev python3-venv pybind11-dev python3-numpy python3-opencv python3-pytest)
 
 missing=()
 for package in "${PACKAGES[@]}"; do

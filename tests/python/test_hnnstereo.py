@@ -124,7 +124,7 @@ def test_bad_input_raises_with_one_line_reasons(teddy):
 
 def test_the_gil_is_released_while_matching(teddy):
     left, right = teddy
-    matcher = hnnstereo.Matcher(engine="cpu")
+    matcher = hnnstereo.Matcher(engine="cpu", max_features=3000)
     ticks = []
     worker = threading.Thread(target=lambda: matcher.match(left, right, max_disparity=64))
     worker.start()
