@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "api/matcher_settings.h"
 #include "host/opencl_runtime.h"
 #include "vision/matcher_presets.h"
 #include "vision/stereo_matcher.h"
@@ -38,10 +39,12 @@ struct MatcherFlags {
   std::string zrange;
   double memory_budget_mb = 2048.0;
   std::string device;
+  api::MatcherSettings settings;  ///< after Resolve(): the library's resolution of the flags
   /// Adds the flags to `cmd`.
   void AddTo(CLI::App* cmd);
   /// Parses the string-valued flags into `options` and applies the preset (its objective unless
-  /// --objective was given, its refinements unless --no-lr-check); throws std::invalid_argument.
+  /// --objective was given, its refinements unless --no-lr-check) through
+  /// api::ResolveMatcherSettings, as the library facade does; throws std::invalid_argument.
   void Resolve();
   /// The preset's feature-vs-disparity network needs rectified rows: for a calibrated,
   /// unrectified pair fall back to the feature-vs-feature network of preset hnn-geometry-lr

@@ -6,6 +6,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <stdexcept>
 #include <string>
@@ -21,9 +22,9 @@ namespace {
 cv::Mat ImageOf(const py::array& array, const char* which) {
   const std::string name(which);
   int depth = -1;
-  if (array.dtype().is(py::dtype::of<std::uint8_t>())) {
+  if (py::isinstance<py::array_t<std::uint8_t>>(array)) {
     depth = CV_8U;
-  } else if (array.dtype().is(py::dtype::of<std::uint16_t>())) {
+  } else if (py::isinstance<py::array_t<std::uint16_t>>(array)) {
     depth = CV_16U;
   } else {
     throw std::invalid_argument(name + " image must be uint8 or uint16 (got dtype " +
