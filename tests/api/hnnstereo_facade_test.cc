@@ -68,13 +68,12 @@ TEST_F(HnnstereoFacade, MatchesACalibratedPairLikeTheCliWithOverrides) {
   const std::string scene = Path("scene");
   const CliResult cli = RunCli("match --left " + scene + "/left.png --right " + scene +
                                "/right.png --calib " + scene + "/calib.yml --max-features 1500 "
-                               "--engine cpu --quiet --out " + Path("m.csv"));
+                               "--top-k 6 --quiet --out " + Path("m.csv"));
   ASSERT_EQ(cli.exit_code, 0) << cli.output;
   const hnnstereo::Calibration calibration = hnnstereo::LoadCalibration(scene + "/calib.yml");
   EXPECT_FALSE(calibration.rectified());
   EXPECT_GT(calibration.image_width(), 0);
-  hnnstereo::Matcher matcher("hnn-default", {{"max-features", "1500"}, {"engine", "cpu"}});
-  EXPECT_EQ(matcher.device(), "cpu");
+  hnnstereo::Matcher matcher("hnn-default", {{"max-features", "1500"}, {"top-k", "6"}});
   const hnnstereo::MatchResult result =
       matcher.Match(Read(scene + "/left.png"), Read(scene + "/right.png"), calibration);
   EXPECT_GT(result.matches.size(), 100u);
