@@ -106,7 +106,7 @@ def test_bad_input_raises_with_one_line_reasons(teddy):
         (ValueError, lambda: hnnstereo.match(left.astype(np.float32), right), "uint8 or uint16"),
         (ValueError, lambda: hnnstereo.match(left, right[:100]), "differ in size"),
         (ValueError, lambda: hnnstereo.match(left[:, :, :2], right[:, :, :2]), "channels"),
-        (ValueError, lambda: hnnstereo.match(left, right, no_such_option=1), "no_such_option"),
+        (ValueError, lambda: hnnstereo.match(left, right, no_such_option=1), "no-such-option"),
         (ValueError, lambda: hnnstereo.match(left, right, preset="nope"), "unknown preset 'nope'"),
         (ValueError, lambda: hnnstereo.match(left, right, engine="gpu"), "unknown engine 'gpu'"),
         (ValueError, lambda: hnnstereo.match(left, right, top_k="many"), "top-k"),
