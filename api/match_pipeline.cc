@@ -1,5 +1,7 @@
 #include "api/match_pipeline.h"
 
+#include <chrono>
+
 #include "vision/lens_distortion.h"
 #include "vision/match_io.h"
 
@@ -21,7 +23,11 @@ vision::MatchReport RunMatchPipeline(const cv::Mat& left_grey, const cv::Mat& ri
     right = vision::UndistortImage(right_grey, lens->K2, lens->D2);
   }
   vision::MatchReport report = vision::MatchStereo(left, right, calibration, options, runtime);
+  // timing_ms.total covers the refinements too (as vision::MatchWithPreset counts them).
+  const auto refine_start = std::chrono::steady_clock::now();
   vision::RefineMatches(left, right, calibration, options, refinement, &report);
+  report.timing_ms.total +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - refine_start).count();
   if (lens) {
     std::vector<Eigen::Vector2f> lefts, rights;
     for (const auto& m : report.matches) {
