@@ -117,6 +117,8 @@ def match(left, right, *, max_disparity=64, calib=None, preset="hnn-default", en
         matcher = _matchers.get(key)
         if matcher is None:
             matcher = Matcher(preset, engine, **options)
+            if len(_matchers) >= 8:  # each holds an OpenCL context: keep the last few settings
+                _matchers.pop(next(iter(_matchers)))
             _matchers[key] = matcher
     return matcher.match(left, right, max_disparity=max_disparity, calib=calib)
 
