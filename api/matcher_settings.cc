@@ -146,7 +146,7 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   }
   const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
 
-  // MatcherFlags::Resolve, step by step.
+  // The preset, unless overridden, then the string-valued settings.
   const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
   if (!chosen) {
     std::string names;

@@ -1,9 +1,10 @@
 #pragma once
 // Matcher settings from a preset name and overrides named like the CLI's flags: the one place
 // where "preset + what the user changed" becomes MatcherOptions and RefinementOptions, for the
-// library facade and the Python module alike (STYLE.md 14: one source of truth for settings).
-// It follows `hnnstereo match`/`pick` (app/cli_support.cc, MatcherFlags::Resolve) step by step;
-// api_settings_test checks the two agree on the defaults.
+// library facade, the Python module and the CLI alike (STYLE.md 14: one source of truth for
+// settings; app/cli_support.cc, MatcherFlags::Resolve, hands its flags here). The tests
+// api_hnnstereo_facade_test and python_hnnstereo check that the CLI, the facade and Python give
+// the same matches.
 
 #include <map>
 #include <string>
