@@ -225,117 +225,35 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
 }
 
 void MatcherFlags::Resolve() {
-  auto& o = options;
-  const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
-  if (!chosen) throw std::invalid_argument("unknown --preset '" + preset + "' (hnn-default, hnn-thesis)");
-  if (objective_option == nullptr || objective_option->count() == 0) {
-    objective = std::string(hnn::ObjectiveName(chosen->matcher.energy.objective));
-  }
-  refinement = chosen->refinement;
-  if (no_left_right_check) refinement.left_right_check = false;
-  // The preset's network and gating, unless given on the command line.
+  // The library resolves preset + overrides (api/matcher_settings.h), for the CLI, the facade
+  // and Python alike: the values CLI11 bound are the base; the string flags, and the flags the
+  // preset yields to when given, are the overrides.
   const auto given = [](const CLI::Option* option) { return option && option->count() > 0; };
-  const vision::CandidateOptions& preset_candidates = chosen->matcher.candidates;
-  if (!given(network_option)) {
-    network = preset_candidates.kind == hnn::NetworkKind::kFeatureVsDisparity ? "disparity" : "feature";
-    o.candidates.zncc_peaks = preset_candidates.zncc_peaks;
-    o.candidates.subpixel_peaks = preset_candidates.subpixel_peaks;
-  }
-  if (!given(top_k_option)) o.candidates.top_k = preset_candidates.top_k;
-  if (!given(support_radius_option)) {
-    o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
-  }
-  if (auto d = vision::ParseFeatureDetector(features)) {
-    o.features.detector = *d;
-  } else {
-    throw std::invalid_argument("unknown --features '" + features + "'");
-  }
-  if (auto e = vision::ParseEngine(engine)) {
-    o.engine = *e;
-  } else {
-    throw std::invalid_argument("unknown --engine '" + engine + "' (opencl, cpu or thesis)");
-  }
-  if (auto obj = hnn::ParseObjective(objective)) {
-    o.energy.objective = *obj;
-  } else {
-    throw std::invalid_argument("unknown --objective '" + objective + "'");
-  }
-  if (auto s = hnn::ParseInitialState(initial_state)) {
-    o.dynamics.initial_state = *s;
-  } else {
-    throw std::invalid_argument("unknown --init '" + initial_state + "'");
-  }
-  if (activation == "continuous") {
-    o.dynamics.activation = hnn::Activation::kContinuous;
-  } else if (activation == "discrete") {
-    o.dynamics.activation = hnn::Activation::kDiscrete;
-  } else {
-    throw std::invalid_argument("unknown --activation '" + activation + "'");
-  }
-  if (!given(stop_option)) {
-    o.dynamics.stop_rule = chosen->matcher.dynamics.stop_rule;
-  } else if (stop_rule == "energy") {
-    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
-  } else if (stop_rule == "decisions") {
-    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
-  } else {
-    throw std::invalid_argument("unknown --stop '" + stop_rule + "' (energy or decisions)");
-  }
-  if (!given(check_interval_option)) {
-    o.dynamics.energy_interval = chosen->matcher.dynamics.energy_interval;
-    o.dynamics.stable_checks = chosen->matcher.dynamics.stable_checks;
-  } else {
-    o.dynamics.energy_interval = check_interval;
-  }
-  if (auto w = hnn::ParseWeightStorage(weight_storage)) {
-    o.opencl.storage = *w;
-  } else {
-    throw std::invalid_argument("unknown --weights '" + weight_storage +
-                                "' (auto, csr, blocked-float, blocked-half, on-the-fly)");
-  }
-  if (auto m = hnn::ParseDecodeMethod(decode)) {
-    o.decode.method = *m;
-  } else {
-    throw std::invalid_argument("unknown --decode '" + decode + "'");
-  }
-  if (network == "feature") {
-    o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
-  } else if (network == "disparity") {
-    o.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
-  } else {
-    throw std::invalid_argument("unknown --network '" + network + "' (feature or disparity)");
-  }
-  if (!zrange.empty()) {
-    double zmin = 0, zmax = 0;
-    char comma = 0;
-    std::istringstream in(zrange);
-    if (!(in >> zmin >> comma >> zmax) || comma != ',' || !(zmin < zmax)) {
-      throw std::invalid_argument("--zrange must be ZMIN,ZMAX with ZMIN < ZMAX (got '" + zrange + "')");
-    }
-    o.candidates.z_range_mm = std::make_pair(zmin, zmax);
-  }
-  if (!(memory_budget_mb > 0)) throw std::invalid_argument("--memory-budget-mb must be positive");
-  o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
-  // The geometry (rectified or not) is settled later by the command; check the rest now.
-  vision::MatcherOptions rest = o;
-  rest.candidates.rectified = true;
-  if (auto error = rest.Check(); !error.empty()) throw std::invalid_argument(error);
+  char budget[64];
+  std::snprintf(budget, sizeof(budget), "%.17g", memory_budget_mb);
+  api::Overrides overrides = {{"features", features},   {"engine", engine},
+                              {"init", initial_state},  {"activation", activation},
+                              {"decode", decode},       {"memory-budget-mb", budget},
+                              {"no-lr-check", no_left_right_check ? "true" : "false"}};
+  if (!zrange.empty()) overrides["zrange"] = zrange;
+  if (!device.empty()) overrides["device"] = device;
+  if (given(objective_option)) overrides["objective"] = objective;
+  if (given(network_option)) overrides["network"] = network;
+  if (given(top_k_option)) overrides["top-k"] = top_k_option->results().back();
+  if (given(support_radius_option)) overrides["support-radius"] = support_radius_option->results().back();
+  if (given(stop_option)) overrides["stop"] = stop_rule;
+  if (given(check_interval_option)) overrides["check-interval"] = std::to_string(check_interval);
+  overrides["weights"] = weight_storage;
+  settings = api::ResolveMatcherSettings(preset, overrides, options);
+  options = settings.matcher;
+  refinement = settings.refinement;
+  objective = std::string(hnn::ObjectiveName(options.energy.objective));
 }
 
 void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {
-  auto& o = options;
-  if (rectified || o.candidates.kind != hnn::NetworkKind::kFeatureVsDisparity) return;
-  if (network_option && network_option->count() > 0) return;  // the user asked; Check() says no
-  const std::optional<vision::MatcherPreset> fallback = vision::FindPreset("hnn-geometry-lr");
-  o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
-  o.candidates.zncc_peaks = false;
-  o.candidates.subpixel_peaks = false;
-  if (fallback) {
-    if (!(top_k_option && top_k_option->count() > 0)) o.candidates.top_k = fallback->matcher.candidates.top_k;
-    if (!(support_radius_option && support_radius_option->count() > 0)) {
-      o.energy.support_radius_px = fallback->matcher.energy.support_radius_px;
-    }
-  }
+  settings.matcher = options;  // with what the command set since Resolve (e.g. rectified)
+  api::UseFeatureNetworkUnlessRectified(rectified, &settings);
+  options = settings.matcher;
 }
 
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {

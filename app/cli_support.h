@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "api/matcher_settings.h"
 #include "host/opencl_runtime.h"
 #include "vision/matcher_presets.h"
 #include "vision/stereo_matcher.h"
@@ -56,10 +57,12 @@ struct MatcherFlags {
   /// Set before AddTo for commands on calibrated, unrectified cells (pick, serve): the help then
   /// shows the defaults that run there (the feature network of hnn-geometry-lr).
   bool unrectified_cell = false;
+  api::MatcherSettings settings;  ///< after Resolve(): the library's resolution of the flags
   /// Adds the flags to `cmd`.
   void AddTo(CLI::App* cmd);
   /// Parses the string-valued flags into `options` and applies the preset (its objective unless
-  /// --objective was given, its refinements unless --no-lr-check); throws std::invalid_argument.
+  /// --objective was given, its refinements unless --no-lr-check) through
+  /// api::ResolveMatcherSettings, as the library facade does; throws std::invalid_argument.
   void Resolve();
   /// The preset's feature-vs-disparity network needs rectified rows: for a calibrated,
   /// unrectified pair fall back to the feature-vs-feature network of preset hnn-geometry-lr

@@ -4,13 +4,13 @@
 #include <memory>
 #include <stdexcept>
 
+#include "api/match_pipeline.h"
 #include "app/cli_support.h"
 #include "app/commands.h"
 #include "calib/atomic_file.h"
 #include "calib/calibration.h"
 #include "vision/image.h"
 #include "vision/matcher_presets.h"
-#include "vision/lens_distortion.h"
 #include "vision/match_io.h"
 #include "vision/overlay.h"
 #include "vision/setup_checks.h"
@@ -81,42 +81,15 @@ void RunMatch(MatchArgs& args) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }
 
-  // A chessboard calibration refers P and F to undistorted pixels: match on undistorted images,
-  // then report the matches in the pixels of the images as given.
-  cv::Mat left_grey = left.grey, right_grey = right.grey;
-  const calib::Intrinsics* lens =
-      calibration && calibration->intrinsics && !calibration->intrinsics->D1.empty()
-          ? &*calibration->intrinsics : nullptr;
-  if (lens) {
-    left_grey = vision::UndistortImage(left.grey, lens->K1, lens->D1);
-    right_grey = vision::UndistortImage(right.grey, lens->K2, lens->D2);
-  }
-  vision::MatchReport report =
-      vision::MatchStereo(left_grey, right_grey, calibration.get(), options, runtime.get());
-  vision::RefineMatches(left_grey, right_grey, calibration.get(), options, args.flags.refinement,
-                        &report);
-  if (lens) {
-    std::vector<Eigen::Vector2f> lefts, rights;
-    for (const auto& m : report.matches) {
-      lefts.push_back(m.left);
-      rights.push_back(m.right);
-    }
-    lefts = vision::DistortPoints(lefts, lens->K1, lens->D1);
-    rights = vision::DistortPoints(rights, lens->K2, lens->D2);
-    for (std::size_t t = 0; t < report.matches.size(); ++t) {
-      report.matches[t].left = lefts[t];
-      report.matches[t].right = rights[t];
-    }
-    report.left_features = vision::DistortPoints(report.left_features, lens->K1, lens->D1);
-    report.right_features = vision::DistortPoints(report.right_features, lens->K2, lens->D2);
-  }
+  // The library facade's pipeline (undistort, match, refine, back to the pixels as given).
+  const vision::MatchReport report = api::RunMatchPipeline(
+      left.grey, right.grey, calibration.get(), options, args.flags.refinement, runtime.get());
 
   // Everything is computed before anything is written; each file is written atomically.
   calib::WriteFileAtomically(args.out, vision::MatchesCsv(report));
   if (!args.report.empty()) {
-    nlohmann::json json = vision::MatchReportJson(report, options);
-    json["preset"] = args.flags.preset;
-    json["left_right_check"] = args.flags.refinement.left_right_check;
+    nlohmann::json json =
+        api::MatchReportJson(report, options, args.flags.preset, args.flags.refinement);
     json["left"] = args.left;
     json["right"] = args.right;
     calib::WriteFileAtomically(args.report, json.dump(2) + "\n");

@@ -108,6 +108,11 @@ LoadedImage LoadImage(const std::string& path) {
   return image;
 }
 
+cv::Mat GreyWorkingCopy(const cv::Mat& original) {
+  if (original.empty()) throw std::invalid_argument("image is empty (0x0)");
+  return ToGrey8(ToSingleChannel(original));
+}
+
 void CheckSameSize(const LoadedImage& left, const LoadedImage& right) {
   if (left.grey.size() != right.grey.size()) {
     throw std::runtime_error("left and right images differ in size: left '" + left.path + "' is " +

@@ -19,6 +19,10 @@ struct LoadedImage {
 /// Throws std::runtime_error with a one-line reason: missing file, unreadable or empty image.
 LoadedImage LoadImage(const std::string& path);
 
+/// The CV_8U grey working copy of an image already in memory (8/16-bit, grey, grey + alpha, BGR
+/// or BGRA), exactly as LoadImage makes `grey`. Throws std::invalid_argument for an empty image.
+cv::Mat GreyWorkingCopy(const cv::Mat& original);
+
 /// Throws std::runtime_error unless both images have the same size (names both sizes).
 void CheckSameSize(const LoadedImage& left, const LoadedImage& right);
 

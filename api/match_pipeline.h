@@ -1,0 +1,35 @@
+#pragma once
+// The match pipeline on grey images, shared by `hnnstereo match` and the library facade (one
+// code path): undistort when the calibration carries lens distortion, MatchStereo, the preset's
+// refinements, then the matches back in the pixels of the images as given.
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "api/matcher_settings.h"
+#include "calib/calibration.h"
+#include "host/opencl_runtime.h"
+#include "vision/matcher_presets.h"
+#include "vision/stereo_matcher.h"
+
+namespace hnnstereo::api {
+
+/// `calibration` may be null for a rectified pair (options.candidates.rectified). `runtime` may
+/// be null (the opencl engine then falls back to cpu with a notice in the report). Throws as
+/// vision::MatchStereo does.
+vision::MatchReport RunMatchPipeline(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                     const calib::StereoCalibration* calibration,
+                                     const vision::MatcherOptions& options,
+                                     const vision::RefinementOptions& refinement,
+                                     ocl::Runtime* runtime);
+
+/// REPORT.json (vision::MatchReportJson) plus the preset and whether the left-right check ran.
+nlohmann::json MatchReportJson(const vision::MatchReport& report, const vision::MatcherOptions& options,
+                               const std::string& preset, const vision::RefinementOptions& refinement);
+
+/// The OpenCL runtime for `engine` == opencl on `device` (empty = the environment's choice);
+/// nullptr otherwise, or when none exists (the reason in `notice`).
+std::unique_ptr<ocl::Runtime> OpenRuntime(hnn::EngineKind engine, const std::string& device,
+                                          std::string* notice);
+
+}  // namespace hnnstereo::api

@@ -1,0 +1,269 @@
+#include "api/matcher_settings.h"
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+
+#include "vision/features.h"
+
+namespace hnnstereo::api {
+namespace {
+
+std::string Quoted(const std::string& name) { return "'" + name + "'"; }
+
+double ParseDouble(const std::string& name, const std::string& value) {
+  std::size_t used = 0;
+  double number = 0.0;
+  try {
+    number = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size()) {
+    throw std::invalid_argument("option " + Quoted(name) + " needs a number (got '" + value + "')");
+  }
+  return number;
+}
+
+long long ParseInteger(const std::string& name, const std::string& value) {
+  std::size_t used = 0;
+  long long number = 0;
+  try {
+    number = std::stoll(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size()) {
+    throw std::invalid_argument("option " + Quoted(name) + " needs an integer (got '" + value + "')");
+  }
+  return number;
+}
+
+int ParseInt(const std::string& name, const std::string& value) {
+  const long long number = ParseInteger(name, value);
+  if (number < INT32_MIN || number > INT32_MAX) {
+    throw std::invalid_argument("option " + Quoted(name) + " is out of range (got '" + value + "')");
+  }
+  return static_cast<int>(number);
+}
+
+bool ParseFlag(const std::string& name, const std::string& value) {
+  if (value.empty() || value == "true" || value == "1" || value == "on" || value == "yes") return true;
+  if (value == "false" || value == "0" || value == "off" || value == "no") return false;
+  throw std::invalid_argument("option " + Quoted(name) + " is a flag: true or false (got '" + value + "')");
+}
+
+using Setter = std::function<void(const std::string& name, const std::string& value,
+                                  vision::MatcherOptions& o)>;
+
+// The CLI's numeric flags and switches, bound straight to the options (app/cli_support.cc).
+const std::map<std::string, Setter>& DirectOptions() {
+  static const std::map<std::string, Setter> options = {
+      {"max-features", [](auto& n, auto& v, auto& o) { o.features.max_features = ParseInt(n, v); }},
+      {"canny-low", [](auto& n, auto& v, auto& o) { o.features.canny_low = ParseDouble(n, v); }},
+      {"canny-high", [](auto& n, auto& v, auto& o) { o.features.canny_high = ParseDouble(n, v); }},
+      {"min-disparity", [](auto& n, auto& v, auto& o) { o.candidates.min_disparity = ParseDouble(n, v); }},
+      {"max-disparity", [](auto& n, auto& v, auto& o) { o.candidates.max_disparity = ParseDouble(n, v); }},
+      {"max-epipolar",
+       [](auto& n, auto& v, auto& o) { o.candidates.max_epipolar_distance_px = ParseDouble(n, v); }},
+      {"top-k", [](auto& n, auto& v, auto& o) { o.candidates.top_k = ParseInt(n, v); }},
+      {"dense", [](auto& n, auto& v, auto& o) { o.candidates.dense = ParseFlag(n, v); }},
+      {"zncc-window", [](auto& n, auto& v, auto& o) { o.zncc_window = ParseInt(n, v); }},
+      {"support-radius",
+       [](auto& n, auto& v, auto& o) { o.energy.support_radius_px = ParseDouble(n, v); }},
+      {"A", [](auto& n, auto& v, auto& o) { o.energy.A = ParseDouble(n, v); }},
+      {"B", [](auto& n, auto& v, auto& o) { o.energy.B = ParseDouble(n, v); }},
+      {"C", [](auto& n, auto& v, auto& o) { o.energy.C = ParseDouble(n, v); }},
+      {"D", [](auto& n, auto& v, auto& o) { o.energy.D = ParseDouble(n, v); }},
+      {"lambda", [](auto& n, auto& v, auto& o) { o.energy.lambda = ParseDouble(n, v); }},
+      {"theta", [](auto& n, auto& v, auto& o) { o.energy.theta = ParseDouble(n, v); }},
+      {"distance-attenuation",
+       [](auto& n, auto& v, auto& o) { o.energy.distance_attenuation = ParseFlag(n, v); }},
+      {"alpha", [](auto& n, auto& v, auto& o) { o.dynamics.alpha = ParseDouble(n, v); }},
+      {"seed",
+       [](auto& n, auto& v, auto& o) {
+         const long long seed = ParseInteger(n, v);
+         if (seed < 0) throw std::invalid_argument("option 'seed' must be >= 0 (got '" + v + "')");
+         o.dynamics.seed = static_cast<std::uint64_t>(seed);
+       }},
+      {"dt", [](auto& n, auto& v, auto& o) { o.dynamics.time_step = ParseDouble(n, v); }},
+      {"max-steps", [](auto& n, auto& v, auto& o) { o.dynamics.max_steps = ParseInt(n, v); }},
+      {"max-updates", [](auto& n, auto& v, auto& o) { o.dynamics.max_updates = ParseInt(n, v); }},
+      {"threshold", [](auto& n, auto& v, auto& o) { o.decode.threshold = ParseDouble(n, v); }},
+      {"min-confidence", [](auto& n, auto& v, auto& o) { o.min_confidence = ParseDouble(n, v); }},
+      {"check-interval",
+       [](auto& n, auto& v, auto& o) { o.dynamics.energy_interval = ParseInt(n, v); }},
+  };
+  return options;
+}
+
+// The CLI's string-valued flags with their defaults (parsed after the preset, as Resolve does).
+const std::map<std::string, std::string>& StringOptionDefaults() {
+  static const std::map<std::string, std::string> defaults = {
+      {"features", "canny"},      {"engine", "opencl"},    {"objective", ""},
+      {"init", "off"},            {"activation", "continuous"}, {"decode", "thesis"},
+      {"network", ""},            {"zrange", ""},          {"memory-budget-mb", "2048"},
+      {"device", ""},             {"no-lr-check", "false"},
+      {"stop", ""},               {"weights", "auto"},
+  };
+  return defaults;
+}
+
+// "max_features" (Python keyword) and "--max-features" (command line) mean "max-features".
+std::string CanonicalName(std::string name) {
+  while (!name.empty() && name.front() == '-') name.erase(0, 1);
+  for (char& c : name) {
+    if (c == '_') c = '-';
+  }
+  return name;
+}
+
+}  // namespace
+
+std::vector<std::string> OverrideNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, setter] : DirectOptions()) names.push_back(name);
+  for (const auto& [name, value] : StringOptionDefaults()) names.push_back(name);
+  return names;
+}
+
+MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
+                                       const vision::MatcherOptions& base) {
+  MatcherSettings settings;
+  settings.preset = preset;
+  settings.matcher = base;
+  vision::MatcherOptions& o = settings.matcher;
+  std::map<std::string, std::string> strings = StringOptionDefaults();
+  for (const auto& [raw_name, value] : overrides) {
+    const std::string name = CanonicalName(raw_name);
+    settings.given[name] = value;
+    if (auto direct = DirectOptions().find(name); direct != DirectOptions().end()) {
+      direct->second(name, value, o);
+    } else if (strings.count(name) > 0) {
+      strings[name] = value;
+    } else {
+      throw std::invalid_argument("unknown option " + Quoted(raw_name) +
+                                  " (the match command's flags without dashes, e.g. max-features)");
+    }
+  }
+  const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
+
+  // The preset, unless overridden, then the string-valued settings.
+  const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
+  if (!chosen) {
+    std::string names;
+    for (const vision::MatcherPreset& p : vision::AllPresets()) names += (names.empty() ? "" : ", ") + p.name;
+    throw std::invalid_argument("unknown preset '" + preset + "' (" + names + ")");
+  }
+  if (!given("objective")) strings["objective"] = std::string(hnn::ObjectiveName(chosen->matcher.energy.objective));
+  settings.refinement = chosen->refinement;
+  if (ParseFlag("no-lr-check", strings["no-lr-check"])) settings.refinement.left_right_check = false;
+  const vision::CandidateOptions& preset_candidates = chosen->matcher.candidates;
+  if (!given("network")) {
+    strings["network"] =
+        preset_candidates.kind == hnn::NetworkKind::kFeatureVsDisparity ? "disparity" : "feature";
+    o.candidates.zncc_peaks = preset_candidates.zncc_peaks;
+    o.candidates.subpixel_peaks = preset_candidates.subpixel_peaks;
+  }
+  if (!given("top-k")) o.candidates.top_k = preset_candidates.top_k;
+  if (!given("support-radius")) o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
+
+  if (auto d = vision::ParseFeatureDetector(strings["features"])) {
+    o.features.detector = *d;
+  } else {
+    throw std::invalid_argument("unknown features '" + strings["features"] + "'");
+  }
+  if (auto e = vision::ParseEngine(strings["engine"])) {
+    o.engine = *e;
+  } else {
+    throw std::invalid_argument("unknown engine '" + strings["engine"] + "' (opencl, cpu or thesis)");
+  }
+  if (auto obj = hnn::ParseObjective(strings["objective"])) {
+    o.energy.objective = *obj;
+  } else {
+    throw std::invalid_argument("unknown objective '" + strings["objective"] + "'");
+  }
+  if (auto s = hnn::ParseInitialState(strings["init"])) {
+    o.dynamics.initial_state = *s;
+  } else {
+    throw std::invalid_argument("unknown init '" + strings["init"] + "'");
+  }
+  if (strings["activation"] == "continuous") {
+    o.dynamics.activation = hnn::Activation::kContinuous;
+  } else if (strings["activation"] == "discrete") {
+    o.dynamics.activation = hnn::Activation::kDiscrete;
+  } else {
+    throw std::invalid_argument("unknown activation '" + strings["activation"] + "'");
+  }
+  // The stop rule and the check interval are the preset's unless given (hnn-default: decisions,
+  // every 2 steps, twice in a row; docs/engine.md).
+  if (!given("stop")) {
+    o.dynamics.stop_rule = chosen->matcher.dynamics.stop_rule;
+  } else if (strings["stop"] == "energy") {
+    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
+  } else if (strings["stop"] == "decisions") {
+    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
+  } else {
+    throw std::invalid_argument("unknown stop '" + strings["stop"] + "' (energy or decisions)");
+  }
+  if (!given("check-interval")) {
+    o.dynamics.energy_interval = chosen->matcher.dynamics.energy_interval;
+    o.dynamics.stable_checks = chosen->matcher.dynamics.stable_checks;
+  }
+  if (auto w = hnn::ParseWeightStorage(strings["weights"])) {
+    o.opencl.storage = *w;
+  } else {
+    throw std::invalid_argument("unknown weights '" + strings["weights"] +
+                                "' (auto, csr, blocked-float, blocked-half, on-the-fly)");
+  }
+  if (auto m = hnn::ParseDecodeMethod(strings["decode"])) {
+    o.decode.method = *m;
+  } else {
+    throw std::invalid_argument("unknown decode '" + strings["decode"] + "'");
+  }
+  if (strings["network"] == "feature") {
+    o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+  } else if (strings["network"] == "disparity") {
+    o.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  } else {
+    throw std::invalid_argument("unknown network '" + strings["network"] + "' (feature or disparity)");
+  }
+  if (const std::string& zrange = strings["zrange"]; !zrange.empty()) {
+    double zmin = 0, zmax = 0;
+    char comma = 0;
+    std::istringstream in(zrange);
+    if (!(in >> zmin >> comma >> zmax) || comma != ',' || !(zmin < zmax)) {
+      throw std::invalid_argument("zrange must be ZMIN,ZMAX with ZMIN < ZMAX (got '" + zrange + "')");
+    }
+    o.candidates.z_range_mm = std::make_pair(zmin, zmax);
+  }
+  const double memory_budget_mb = ParseDouble("memory-budget-mb", strings["memory-budget-mb"]);
+  if (!(memory_budget_mb > 0)) throw std::invalid_argument("memory-budget-mb must be positive");
+  o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
+  settings.device = strings["device"];
+  // The geometry (rectified or not) is settled by the call; check the rest now.
+  vision::MatcherOptions rest = o;
+  rest.candidates.rectified = true;
+  if (auto error = rest.Check(); !error.empty()) throw std::invalid_argument(error);
+  return settings;
+}
+
+void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings) {
+  vision::MatcherOptions& o = settings->matcher;
+  if (rectified || o.candidates.kind != hnn::NetworkKind::kFeatureVsDisparity) return;
+  if (settings->given.count("network") > 0) return;  // the user asked; Check() says no
+  const std::optional<vision::MatcherPreset> fallback = vision::FindPreset("hnn-geometry-lr");
+  o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+  o.candidates.zncc_peaks = false;
+  o.candidates.subpixel_peaks = false;
+  if (fallback) {
+    if (settings->given.count("top-k") == 0) o.candidates.top_k = fallback->matcher.candidates.top_k;
+    if (settings->given.count("support-radius") == 0) {
+      o.energy.support_radius_px = fallback->matcher.energy.support_radius_px;
+    }
+  }
+}
+
+}  // namespace hnnstereo::api

@@ -1,0 +1,41 @@
+#pragma once
+// Matcher settings from a preset name and overrides named like the CLI's flags: the one place
+// where "preset + what the user changed" becomes MatcherOptions and RefinementOptions, for the
+// library facade, the Python module and the CLI alike (STYLE.md 14: one source of truth for
+// settings; app/cli_support.cc, MatcherFlags::Resolve, hands its flags here). The tests
+// api_hnnstereo_facade_test and python_hnnstereo check that the CLI, the facade and Python give
+// the same matches.
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "vision/matcher_presets.h"
+#include "vision/stereo_matcher.h"
+
+namespace hnnstereo::api {
+
+using Overrides = std::map<std::string, std::string>;
+
+struct MatcherSettings {
+  std::string preset = "hnn-default";
+  vision::MatcherOptions matcher;
+  vision::RefinementOptions refinement;
+  std::string device;  ///< OpenCL device (index or name substring); empty = environment
+  Overrides given;     ///< the overrides as given (names without dashes)
+};
+
+/// The names ResolveMatcherSettings accepts (the CLI's matcher flags without the dashes).
+std::vector<std::string> OverrideNames();
+
+/// `base` (MatcherOptions{} for `match`, PickCellMatcherOptions() for `pick`), then the preset's
+/// compatibility, network, gating and refinements unless overridden, then the overrides. Throws
+/// std::invalid_argument naming an unknown preset or option, or a bad value.
+MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
+                                       const vision::MatcherOptions& base);
+
+/// The feature-vs-disparity network needs rectified rows: on a calibrated, unrectified pair fall
+/// back to the feature-vs-feature network of preset hnn-geometry-lr (unless "network" was given).
+void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings);
+
+}  // namespace hnnstereo::api

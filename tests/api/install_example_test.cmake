@@ -1,0 +1,61 @@
+# The library contract end to end: install the build into a scratch prefix, configure and build
+# examples/cpp against it (the package alone, as a user outside the tree would), run it on the
+# vendored Teddy pair and check it finds the CLI's match count.
+# cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DCLI=... [-DLAUNCHER=ccache] -P install_example_test.cmake
+set(prefix ${BUILD_DIR}/api-test/prefix)
+set(example_build ${BUILD_DIR}/api-test/example-build)
+set(teddy ${SOURCE_DIR}/tests/data/middlebury2003_teddy)
+file(REMOVE_RECURSE ${prefix})
+
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT code EQUAL 0)
+    message(FATAL_ERROR "failed (${code}): ${ARGN}\n${out}\n${err}")
+  endif()
+  set(run_output "${out}" PARENT_SCOPE)
+endfunction()
+
+string(TIMESTAMP start "%s")
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+string(TIMESTAMP installed "%s")
+foreach(file include/hnnstereo/hnnstereo.h lib/cmake/hnnstereo/hnnstereoConfig.cmake
+             lib/cmake/hnnstereo/hnnstereoConfigVersion.cmake lib/pkgconfig/hnnstereo.pc)
+  if(NOT EXISTS ${prefix}/${file})
+    message(FATAL_ERROR "the install lacks ${file}")
+  endif()
+endforeach()
+
+set(launcher "")
+if(LAUNCHER)
+  set(launcher -DCMAKE_CXX_COMPILER_LAUNCHER=${LAUNCHER})
+endif()
+# Only the prefix: no path into the source or build tree reaches the example.
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/cpp -B ${example_build} -G Ninja
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} ${launcher})
+run(${CMAKE_COMMAND} --build ${example_build})
+run(${example_build}/match_pair ${teddy}/im2.png ${teddy}/im6.png 64)
+set(example_output "${run_output}")
+string(REGEX MATCH "^([0-9]+) matches" _ "${example_output}")
+set(example_count ${CMAKE_MATCH_1})
+
+run(${CLI} match --left ${teddy}/im2.png --right ${teddy}/im6.png --rectified --max-disparity 64
+    --out ${BUILD_DIR}/api-test/cli_matches.csv --quiet)
+file(STRINGS ${BUILD_DIR}/api-test/cli_matches.csv rows)
+list(LENGTH rows cli_rows)
+math(EXPR cli_count "${cli_rows} - 1")
+message(STATUS "example: ${example_output}")
+math(EXPR install_s "${installed} - ${start}")
+message(STATUS "install took ${install_s} s; example ${example_count} matches, CLI ${cli_count}")
+if(NOT example_count STREQUAL cli_count)
+  message(FATAL_ERROR "the example found ${example_count} matches, the CLI ${cli_count}")
+endif()
+
+# pkg-config sees the same package.
+find_program(PKG_CONFIG pkg-config)
+if(PKG_CONFIG)
+  set(ENV{PKG_CONFIG_PATH} ${prefix}/lib/pkgconfig)
+  run(${PKG_CONFIG} --libs --cflags hnnstereo)
+  if(NOT run_output MATCHES "-lhnnstereo")
+    message(FATAL_ERROR "pkg-config hnnstereo: ${run_output}")
+  endif()
+endif()
