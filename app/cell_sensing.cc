@@ -99,7 +99,7 @@ std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingRe
   std::vector<robot::SensedObject> objects;
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
-    objects.push_back({id++, pose.centroid, pose.height_mm, pose.yaw_deg});
+    objects.push_back({id++, pose.centroid, pose.height_mm, pose.yaw_deg, pose.merged});
   }
   return objects;
 }

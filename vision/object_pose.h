@@ -69,6 +69,9 @@ struct ObjectPose {
   bool round = false;            ///< the top face's hull fits a circle (see max_circle_residual)
   Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
   double circle_radius = 0.0;    ///< when round (mm)
+  /// Touching parts of about equal height that could not be separated: the pose may lie
+  /// between them (OBJECTS.json "merged": true; the robot's safety gate refuses it).
+  bool merged = false;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points

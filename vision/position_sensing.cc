@@ -217,7 +217,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {"length", pose.top_rectangle.length},
            {"width", pose.top_rectangle.width},
            {"yaw_deg", pose.top_rectangle.yaw_deg}}},
-         {"round", pose.round}});
+         {"round", pose.round},
+         {"merged", pose.merged}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},
