@@ -44,6 +44,10 @@ std::string ObjectPoseOptions::Check() const {
         << ")";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
+  } else if (!(outline_band_fraction >= 0.0 && outline_band_fraction < 0.5 &&
+               min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
+    out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
+           "min_outline_fraction in [0, 1]";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
   } else if (!(densest_slab_factor > 0.0)) {
@@ -296,8 +300,53 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
   return count;
 }
 
+// Distance from `p` inside (or outside) `rectangle` to its outline.
+double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
+  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+  const Eigen::Vector2d d = p - rectangle.centre;
+  const double along = std::abs(d.dot(u)) - 0.5 * rectangle.length;
+  const double across = std::abs(d.dot(v)) - 0.5 * rectangle.width;
+  if (along <= 0.0 && across <= 0.0) return -std::max(along, across);  // inside
+  return Eigen::Vector2d(std::max(along, 0.0), std::max(across, 0.0)).norm();
+}
+
 }  // namespace
 
+bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
+                          const std::vector<Eigen::Vector2d>& second,
+                          const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  std::vector<Eigen::Vector2d> joint = first;
+  joint.insert(joint.end(), second.begin(), second.end());
+  // A round face: the joint hull fits one circle (two arcs of one rim).
+  const std::vector<Eigen::Vector2d> hull = ConvexHull(joint);
+  if (options.max_circle_residual > 0.0 && hull.size() >= 12) {
+    if (const auto circle = FitCircle(hull);
+        circle && circle->rms_residual < options.max_circle_residual * circle->radius) {
+      int on_rim = 0;
+      for (const auto& p : joint) {
+        if (std::abs((p - circle->centre).norm() - circle->radius) <=
+            std::max(options.top_layer_mm, options.outline_band_fraction * circle->radius)) {
+          ++on_rim;
+        }
+      }
+      if (on_rim >= options.min_outline_fraction * static_cast<double>(joint.size())) return true;
+    }
+  }
+  // A rectangular face: each piece lies along the joint rectangle's outline; two parts standing
+  // apart put their inner sides deep inside it.
+  const Rectangle2D rectangle = MinAreaRectangle(joint);
+  const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
+  for (const auto* piece : {&first, &second}) {
+    int on_outline = 0;
+    for (const auto& p : *piece) {
+      if (DistanceToRectangleOutline(rectangle, p) <= band) ++on_outline;
+    }
+    if (on_outline < options.min_outline_fraction * static_cast<double>(piece->size())) return false;
+  }
+  return true;
+}
 
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
@@ -313,6 +362,7 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
     changed = false;
     std::vector<ObjectPose> poses;
     std::vector<std::vector<Eigen::Vector2d>> top_hulls;
+    std::vector<std::vector<Eigen::Vector2d>> tops;
     for (const auto& cluster : clusters) {
       poses.push_back(EstimateObjectPose(points_in_world, cluster, options));
       std::vector<Eigen::Vector2d> top_xy;
@@ -321,6 +371,7 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
         if (std::abs(p.z() - poses.back().height_mm) <= options.top_layer_mm) top_xy.push_back(p.head<2>());
       }
       top_hulls.push_back(ConvexHull(top_xy));
+      tops.push_back(std::move(top_xy));
     }
     std::vector<int> cluster_of_point(points_in_world.size(), -1);
     for (std::size_t c = 0; c < clusters.size(); ++c) {
@@ -345,7 +396,9 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
               std::abs(poses[small].height_mm - poses[large].height_mm) >
                   options.max_split_height_difference_mm ||
-              HullGap(top_hulls[small], top_hulls[large]) > options.max_top_face_gap_mm ||
+              (HullGap(top_hulls[small], top_hulls[large]) > options.max_top_face_gap_mm &&
+               !(options.join_face_outlines &&
+                 PiecesOutlineOneFace(tops[small], tops[large], options))) ||
               PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
                                         static_cast<int>(large), joint, height, options, weak) >
                   options.max_hidden_fraction *

@@ -39,9 +39,20 @@ struct ObjectPoseOptions {
   /// the circle, where the rectangle's centre shifts. Needs 8 hull vertices and 60 top points
   /// (a fragment of a face can fit some circle by chance). 0 disables the fit.
   double max_circle_residual = 0.02;
-  /// MergeTopFaceIslands joins two pieces of one split top face only when their outlines are
-  /// at most this far apart (mm): the featureless middle of a top face, not a part's length.
+  /// MergeTopFaceIslands joins two pieces of one split top face when their outlines are at
+  /// most this far apart (mm): the featureless middle of a textured top face. Further apart,
+  /// they join only when they outline one face together (PiecesOutlineOneFace): a plain top face
+  /// shows only its outline, whatever its size.
   double max_top_face_gap_mm = 30.0;
+  /// Join same-height pieces further apart than max_top_face_gap_mm when PiecesOutlineOneFace
+  /// says they outline one face (false: the rule before issue 12, for comparison).
+  bool join_face_outlines = true;
+  /// PiecesOutlineOneFace: a point is on the joint face's outline when it lies within this
+  /// fraction of the joint rectangle's width (circle: of its radius), at least top_layer_mm, of
+  /// it ...
+  double outline_band_fraction = 0.2;
+  /// ... and each piece needs this fraction of its top points on the outline.
+  double min_outline_fraction = 0.9;
   /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
   /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
   double max_split_height_difference_mm = 2.0;
@@ -126,6 +137,17 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
                                                   const std::vector<bool>* weak = nullptr);
+
+/// Whether two same-height pieces of top-face points (table plane, mm) are together the outline
+/// of one face: a plain top face shows only its outline, and its edges along the epipolar lines
+/// are weak, so it falls apart into parallel edges a face's width apart. True when the joint
+/// points' hull fits one circle and min_outline_fraction of them lie on it, or when
+/// min_outline_fraction of each piece's points lie within outline_band_fraction of the joint
+/// minimum-area rectangle's width from its outline (two parts standing apart put their inner
+/// sides deep inside the joint rectangle).
+bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
+                          const std::vector<Eigen::Vector2d>& second,
+                          const ObjectPoseOptions& options = {});
 
 /// Poses of all clusters, tallest first (the thesis's pick order).
 std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,
