@@ -311,7 +311,52 @@ double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vec
   return Eigen::Vector2d(std::max(along, 0.0), std::max(across, 0.0)).norm();
 }
 
+// Fraction of the side of `piece`'s minimum-area rectangle that faces `towards` covered by the
+// piece's points (1 mm bins within `band` of the side): a part's own edge facing the gap is a
+// dense straight line; the cut across a split face is not.
+double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
+                          double band) {
+  const Rectangle2D rectangle = MinAreaRectangle(piece);
+  if (rectangle.length < 1.0) return 0.0;
+  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+  const Eigen::Vector2d to = towards - rectangle.centre;
+  // The facing side: the one whose outward normal points most towards `towards`.
+  const double along_u = to.dot(u) / (0.5 * rectangle.length);
+  const double along_v = to.dot(v) / std::max(0.5 * rectangle.width, 1e-9);
+  const bool across_u = std::abs(along_u) > std::abs(along_v);
+  const Eigen::Vector2d normal = across_u ? (along_u > 0 ? u : -u) : (along_v > 0 ? v : -v);
+  const Eigen::Vector2d direction = across_u ? v : u;
+  const double offset = across_u ? 0.5 * rectangle.length : 0.5 * rectangle.width;
+  const double side_length = across_u ? rectangle.width : rectangle.length;
+  const int bins = std::max(1, static_cast<int>(std::floor(side_length)));
+  std::vector<bool> covered(static_cast<std::size_t>(bins), false);
+  for (const auto& p : piece) {
+    const Eigen::Vector2d d = p - rectangle.centre;
+    if (offset - d.dot(normal) > band) continue;
+    const double t = d.dot(direction) + 0.5 * side_length;
+    const int bin = std::clamp(static_cast<int>(std::floor(t * bins / side_length)), 0, bins - 1);
+    covered[static_cast<std::size_t>(bin)] = true;
+  }
+  return static_cast<double>(std::count(covered.begin(), covered.end(), true)) / bins;
+}
+
 }  // namespace
+
+bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
+                                  const std::vector<Eigen::Vector2d>& second,
+                                  const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  Eigen::Vector2d first_centre = Eigen::Vector2d::Zero(), second_centre = Eigen::Vector2d::Zero();
+  for (const auto& p : first) first_centre += p;
+  for (const auto& p : second) second_centre += p;
+  first_centre /= static_cast<double>(first.size());
+  second_centre /= static_cast<double>(second.size());
+  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm) >=
+             options.min_facing_edge_coverage &&
+         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm) >=
+             options.min_facing_edge_coverage;
+}
 
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
@@ -347,6 +392,21 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   }
   return true;
 }
+
+namespace {
+
+// The shape rules of the split-face join (the height and hidden-point rules come on top).
+bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<Eigen::Vector2d>& large,
+                   double gap_mm, const ObjectPoseOptions& options) {
+  const bool outline = options.join_face_outlines && PiecesOutlineOneFace(small, large, options);
+  if (outline) return true;
+  if (gap_mm > options.max_top_face_gap_mm) return false;
+  // Near pieces: two parts whose own edges face each other across the gap stay apart (two tall
+  // parts hide the table between them, so the hidden-point rule cannot see the gap).
+  return !(options.join_face_outlines && PiecesFaceEachOtherWithEdges(small, large, options));
+}
+
+}  // namespace
 
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
@@ -396,9 +456,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
               std::abs(poses[small].height_mm - poses[large].height_mm) >
                   options.max_split_height_difference_mm ||
-              (HullGap(top_hulls[small], top_hulls[large]) > options.max_top_face_gap_mm &&
-               !(options.join_face_outlines &&
-                 PiecesOutlineOneFace(tops[small], tops[large], options))) ||
+              !JoinAsOneFace(tops[small], tops[large],
+                             HullGap(top_hulls[small], top_hulls[large]), options) ||
               PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
                                         static_cast<int>(large), joint, height, options, weak) >
                   options.max_hidden_fraction *

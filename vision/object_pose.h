@@ -53,6 +53,12 @@ struct ObjectPoseOptions {
   double outline_band_fraction = 0.2;
   /// ... and each piece needs this fraction of its top points on the outline.
   double min_outline_fraction = 0.9;
+  /// Near pieces (within max_top_face_gap_mm) stay apart when each has an edge facing the other
+  /// (PiecesFaceEachOtherWithEdges): points within this distance (mm) of the facing side ...
+  double facing_edge_band_mm = 2.0;
+  /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
+  /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
+  double min_facing_edge_coverage = 0.6;
   /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
   /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
   double max_split_height_difference_mm = 2.0;
@@ -148,6 +154,13 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options = {});
+
+/// Whether each piece (table plane, mm) has a dense straight edge - its own minimum-area
+/// rectangle's side - facing the other: two parts standing apart, not the pieces of one face
+/// (the cut across a split textured face is no straight edge).
+bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
+                                  const std::vector<Eigen::Vector2d>& second,
+                                  const ObjectPoseOptions& options = {});
 
 /// Poses of all clusters, tallest first (the thesis's pick order).
 std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,

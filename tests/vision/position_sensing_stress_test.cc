@@ -152,6 +152,10 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   PositionSensingOptions sensing;  // the library's defaults: what `pick` runs
   sensing.matcher.engine = hnn::EngineKind::kCpu;
   if (Env("HNNSTEREO_STRESS_OLD_MERGE", "0") == "1") sensing.pose.join_face_outlines = false;
+  // Debugging: keep small parts (HNNSTEREO_STRESS_MIN_STRONG=1) to see where a face's pieces go.
+  sensing.min_strong_points = std::stoi(Env("HNNSTEREO_STRESS_MIN_STRONG", "60"));
+  if (sensing.min_strong_points < 60) sensing.min_top_fraction = 0.0;
+  if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
   const std::string only_seeds = "," + Env("HNNSTEREO_STRESS_SEEDS", "") + ",";
   std::map<std::string, Bin> bins;
   const auto start = std::chrono::steady_clock::now();
@@ -209,6 +213,17 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
                       object.size_mm.z(), pair.centroid_error_mm, pair.height_error_mm,
                       pair.yaw_error_deg);
         line += text;
+        if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {
+          const ObjectPose& pose = report.objects[static_cast<std::size_t>(pair.detected_index)];
+          std::snprintf(text, sizeof text,
+                        " [points %d top %d rect (%.1f, %.1f) %.1f x %.1f yaw %.1f round %d circle "
+                        "(%.1f, %.1f) r %.1f]",
+                        pose.points, pose.top_points, pose.top_rectangle.centre.x(),
+                        pose.top_rectangle.centre.y(), pose.top_rectangle.length,
+                        pose.top_rectangle.width, pose.top_rectangle.yaw_deg, pose.round,
+                        pose.circle_centre.x(), pose.circle_centre.y(), pose.circle_radius);
+          line += text;
+        }
       }
     }
     std::vector<bool> paired(report.objects.size(), false);
@@ -237,6 +252,14 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (!paired[d] || pose.merged || nearest_mm > 4.0) {
+        if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {
+          char detail[200];
+          std::snprintf(detail, sizeof detail,
+                        " [points %d top %d rect %.1f x %.1f yaw %.1f]", pose.points,
+                        pose.top_points, pose.top_rectangle.length, pose.top_rectangle.width,
+                        pose.top_rectangle.yaw_deg);
+          line += detail;
+        }
         char text[200];
         std::snprintf(text, sizeof text, " %s at (%.1f, %.1f) h %.1f, %.1f mm from a part%s",
                       paired[d] ? "POSE" : "FALSE", pose.centroid.x(), pose.centroid.y(),
