@@ -217,8 +217,18 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
                                                                      : pose.yaw_moments_deg;
   Eigen::Vector2d centre = pose.top_rectangle.centre;
+  const std::vector<Eigen::Vector2d> top_hull = ConvexHull(top_xy);
+  if (const double area = pose.top_rectangle.length * pose.top_rectangle.width; area > 0.0) {
+    double hull_area = 0.0;  // shoelace
+    for (std::size_t i = 0; i < top_hull.size(); ++i) {
+      const Eigen::Vector2d& a = top_hull[i];
+      const Eigen::Vector2d& b = top_hull[(i + 1) % top_hull.size()];
+      hull_area += 0.5 * (a.x() * b.y() - a.y() * b.x());
+    }
+    pose.top_fill = std::abs(hull_area) / area;
+  }
   if (options.max_circle_residual > 0.0) {
-    const std::vector<Eigen::Vector2d> hull = ConvexHull(top_xy);
+    const std::vector<Eigen::Vector2d>& hull = top_hull;
     constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
     // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
     constexpr std::size_t kMinCirclePoints = 60;
@@ -358,6 +368,24 @@ bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
              options.min_facing_edge_coverage;
 }
 
+bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
+                                    const std::vector<Eigen::Vector2d>& second,
+                                    const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  const Rectangle2D a = MinAreaRectangle(first), b = MinAreaRectangle(second);
+  if (std::abs(NormaliseAxisAngle(a.yaw_deg - b.yaw_deg)) > options.max_end_yaw_difference_deg) {
+    return false;
+  }
+  if (std::abs(a.length - b.length) > options.max_end_length_difference * std::max(a.length, b.length)) {
+    return false;
+  }
+  // Side by side across their long axis, not shifted along it.
+  const double yaw = a.yaw_deg / kDegreesPerRadian;  // b's is within a few degrees
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw));
+  return std::abs((b.centre - a.centre).dot(u)) <=
+         options.max_end_length_difference * std::max(a.length, b.length);
+}
+
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options) {
@@ -398,9 +426,14 @@ namespace {
 // The shape rules of the split-face join (the height and hidden-point rules come on top).
 bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<Eigen::Vector2d>& large,
                    double gap_mm, const ObjectPoseOptions& options) {
-  const bool outline = options.join_face_outlines && PiecesOutlineOneFace(small, large, options);
-  if (outline) return true;
-  if (gap_mm > options.max_top_face_gap_mm) return false;
+  if (!options.join_face_outlines) return gap_mm <= options.max_top_face_gap_mm;
+  if (PiecesOutlineOneFace(small, large, options)) return true;
+  if (gap_mm > options.max_top_face_gap_mm) {
+    // A face's two strong ends (its sides along the epipolar lines are weak), each with the
+    // marks near it: parallel, as long as each other, side by side; not two parts with edges.
+    return PiecesAreOppositeEndsOfOneFace(small, large, options) &&
+           !PiecesFaceEachOtherWithEdges(small, large, options);
+  }
   // Near pieces: two parts whose own edges face each other across the gap stay apart (two tall
   // parts hide the table between them, so the hidden-point rule cannot see the gap).
   return !(options.join_face_outlines && PiecesFaceEachOtherWithEdges(small, large, options));

@@ -59,6 +59,13 @@ struct ObjectPoseOptions {
   /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
   /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
   double min_facing_edge_coverage = 0.6;
+  /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
+  /// ...
+  double max_end_yaw_difference_deg = 5.0;
+  /// ... their lengths differ by at most this fraction, and they are shifted along their long
+  /// axis by at most this fraction of it. Seed 5064: a 68 x 49 mm textured top came out as its
+  /// two 49 mm ends (48.4 x 21.9 and 47.9 x 16.3 mm pieces) 68 mm apart.
+  double max_end_length_difference = 0.15;
   /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
   /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
   double max_split_height_difference_mm = 2.0;
@@ -84,6 +91,9 @@ struct ObjectPose {
   double yaw_moments_deg = 0.0;  ///< thesis central moments, in (-90, 90]
   Rectangle2D top_rectangle;     ///< minimum-area rectangle of the top face's points
   bool round = false;            ///< the top face's hull fits a circle (see max_circle_residual)
+  /// Area of the top face's convex hull over its rectangle's area (1 for a full rectangle, about
+  /// 0.79 for a disc's points in their square): low for the union of two touching faces.
+  double top_fill = 0.0;
   Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
   double circle_radius = 0.0;    ///< when round (mm)
   /// Touching parts of about equal height that could not be separated: the pose may lie
@@ -154,6 +164,13 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options = {});
+
+/// Whether two same-height pieces (table plane, mm) are the two strong ends of one face: their
+/// minimum-area rectangles parallel (max_end_yaw_difference_deg), of about one length and side
+/// by side across it (max_end_length_difference).
+bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
+                                    const std::vector<Eigen::Vector2d>& second,
+                                    const ObjectPoseOptions& options = {});
 
 /// Whether each piece (table plane, mm) has a dense straight edge - its own minimum-area
 /// rectangle's side - facing the other: two parts standing apart, not the pieces of one face

@@ -47,6 +47,7 @@ std::string PositionSensingOptions::Check() const {
   if (min_strong_points < 1) return "min_strong_points must be >= 1";
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
+  if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -179,6 +180,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   });
   report.objects =
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
+  for (ObjectPose& pose : report.objects) {
+    pose.merged = !pose.round && pose.top_fill < options.min_top_fill;
+    if (pose.merged) ++report.merged;
+  }
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;
@@ -218,6 +223,7 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {"width", pose.top_rectangle.width},
            {"yaw_deg", pose.top_rectangle.yaw_deg}}},
          {"round", pose.round},
+         {"top_fill", pose.top_fill},
          {"merged", pose.merged}});
     if (pose.round) {
       objects.back()["top_circle"] = {
@@ -247,7 +253,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
             {"in_small_clusters", report.clustering.n_in_small_clusters},
             {"island_merges", report.island_merges},
             {"without_top_face", report.without_top_face},
-            {"narrow_top_face", report.narrow_top_face}}},
+            {"narrow_top_face", report.narrow_top_face},
+            {"merged", report.merged}}},
           {"timing_ms",
            {{"match", report.timing_ms.match},
             {"triangulate", report.timing_ms.triangulate},

@@ -216,9 +216,9 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {
           const ObjectPose& pose = report.objects[static_cast<std::size_t>(pair.detected_index)];
           std::snprintf(text, sizeof text,
-                        " [points %d top %d rect (%.1f, %.1f) %.1f x %.1f yaw %.1f round %d circle "
+                        " [points %d top %d fill %.2f rect (%.1f, %.1f) %.1f x %.1f yaw %.1f round %d circle "
                         "(%.1f, %.1f) r %.1f]",
-                        pose.points, pose.top_points, pose.top_rectangle.centre.x(),
+                        pose.points, pose.top_points, pose.top_fill, pose.top_rectangle.centre.x(),
                         pose.top_rectangle.centre.y(), pose.top_rectangle.length,
                         pose.top_rectangle.width, pose.top_rectangle.yaw_deg, pose.round,
                         pose.circle_centre.x(), pose.circle_centre.y(), pose.circle_radius);
@@ -251,12 +251,15 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (pose.merged) ++b.merged;
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
+      if (std::getenv("HNNSTEREO_FILL") != nullptr) {
+        std::printf("fill %.3f %s %.1f\n", pose.top_fill, pose.round ? "round" : "rect", nearest_mm);
+      }
       if (!paired[d] || pose.merged || nearest_mm > 4.0) {
         if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {
           char detail[200];
           std::snprintf(detail, sizeof detail,
-                        " [points %d top %d rect %.1f x %.1f yaw %.1f]", pose.points,
-                        pose.top_points, pose.top_rectangle.length, pose.top_rectangle.width,
+                        " [points %d top %d fill %.2f rect %.1f x %.1f yaw %.1f]", pose.points,
+                        pose.top_points, pose.top_fill, pose.top_rectangle.length, pose.top_rectangle.width,
                         pose.top_rectangle.yaw_deg);
           line += detail;
         }
