@@ -29,6 +29,10 @@ MatcherOptions PickCellMatcherOptions() {
   options.candidates.z_range_mm = std::make_pair(-5.0, 200.0);
   options.candidates.top_k = 8;
   options.energy.support_radius_px = 8.0;
+  // What `pick` and `serve` run (the hnn-default preset's objective, docs/accuracy.md): the
+  // pairwise term as geometric consistency times similarity. One source of truth: the CLI's
+  // CellSensingFlags start from these options.
+  options.energy.objective = hnn::Objective::kGeometrySimilarity;
   // The dusty table gives thousands of edge points that all lie at z = 0; the cap (kept spread
   // over the image) bounds the all-pairs epipolar gating, which dominates the time: 8000
   // features per image took 3.8 s of gating, 4000 take 0.8 s (seed 3, this machine).

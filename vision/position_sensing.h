@@ -22,7 +22,8 @@ namespace hnnstereo::vision {
 
 /// Matcher settings measured to work in the pick cell: calibrated, unrectified pair gated by F
 /// (2 px), by the height of the triangulated candidate (-5 to 200 mm above the table), the 8
-/// best-correlated candidates per left feature, Canny features.
+/// best-correlated candidates per left feature, Canny features, the geometry x similarity
+/// objective. These are what `pick` and `serve` run when no matcher flag is given.
 MatcherOptions PickCellMatcherOptions();
 
 struct PositionSensingOptions {
