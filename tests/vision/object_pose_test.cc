@@ -217,6 +217,20 @@ TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
   const auto left_part = RectanglePoints({0, 0}, 40, 30, 0, 200, 0.4, &random);
   const auto right_part = RectanglePoints({0, 65}, 40, 30, 0, 200, 0.4, &random);
   EXPECT_FALSE(PiecesOutlineOneFace(left_part, right_part));
+  // A face's two ends (edge plus marks near it), 68 mm apart: parallel, as long, side by side.
+  std::vector<Eigen::Vector2d> end_a, end_b;
+  std::uniform_real_distribution<double> along(-24.0, 24.0), depth(0.0, 18.0);
+  for (int k = 0; k < 80; ++k) {
+    end_a.emplace_back(along(random), -34.0 + (k % 2 ? 0.0 : depth(random)));
+    end_b.emplace_back(along(random), 34.0 - (k % 2 ? 0.0 : depth(random)));
+  }
+  EXPECT_TRUE(PiecesAreOppositeEndsOfOneFace(end_a, end_b));
+  EXPECT_FALSE(PiecesFaceEachOtherWithEdges(end_a, end_b)) << "marks are no facing edge";
+  // Two parts' full outlines face each other with edges; shifted pieces are no face's ends.
+  EXPECT_TRUE(PiecesFaceEachOtherWithEdges(left_part, right_part));
+  std::vector<Eigen::Vector2d> shifted = end_b;
+  for (auto& p : shifted) p.x() += 30.0;
+  EXPECT_FALSE(PiecesAreOppositeEndsOfOneFace(end_a, shifted));
   // A part and the far edge of another one.
   std::vector<Eigen::Vector2d> far_edge;
   for (std::size_t k = 0; k < right_part.size(); k += 4) far_edge.push_back(right_part[k + 1]);

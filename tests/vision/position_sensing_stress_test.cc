@@ -143,6 +143,11 @@ TEST(PositionSensingStress, ListScenes) {
   }
 }
 
+const std::vector<std::string> kTableOrder = {
+    "all",          "size 25-40",     "size 40-60", "size 60-75",        "height 10-50",
+    "height 50-100", "height 100-150", "random",     "plain",             "noise 2, blur 0.6",
+    "noise 2, blur 1.0", "noise 6, blur 0.6", "noise 6, blur 1.0", "gap 15", "gap 0"};
+
 TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   if (Env("HNNSTEREO_STRESS", "0") != "1") GTEST_SKIP() << "opt-in: HNNSTEREO_STRESS=1";
   const std::string profile = Env("HNNSTEREO_STRESS_PROFILE", "default");
@@ -271,6 +276,14 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
       }
     }
     std::cout << line << std::endl;
+    if (scenes_done % 10 == 0 && scenes_done < num_scenes) {
+      // Partial tables: a run cut short still reports what it measured.
+      std::printf("\nafter %d scenes (seeds %llu-%llu), %.0f s:\n", scenes_done,
+                  static_cast<unsigned long long>(first_seed), static_cast<unsigned long long>(seed),
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      PrintTable(bins, kTableOrder);
+      std::fflush(stdout);
+    }
   }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -279,10 +292,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
               static_cast<unsigned long long>(first_seed + num_scenes - 1),
               true_cameras ? "true cameras" : "calibrated from the target images", seconds,
               seconds / std::max(1, scenes_done));
-  PrintTable(bins, {"all", "size 25-40", "size 40-60", "size 60-75", "height 10-50",
-                    "height 50-100", "height 100-150", "random", "plain", "noise 2, blur 0.6",
-                    "noise 2, blur 1.0", "noise 6, blur 0.6", "noise 6, blur 1.0", "gap 15",
-                    "gap 0"});
+  PrintTable(bins, kTableOrder);
   std::fflush(stdout);
   const Bin& all = bins["all"];
   ASSERT_GT(all.parts, 0);
