@@ -200,7 +200,7 @@ TEST(SceneRender, RangesTextureAndBrightnessAreSeededAndKeepTheParts) {
   EXPECT_LT(plain_sd[0], textured_sd[0]);
   // Size and height ranges hold for every part: the longest top-face side and the height.
   SceneRenderOptions ranged = defaults;
-  ranged.num_objects = 0;
+  ranged.num_objects = 2;  // 1-9 parts this large do not fit the work area
   ranged.min_side_mm = 90.0;
   ranged.max_side_mm = 140.0;
   ranged.min_height_mm = 20.0;
