@@ -94,6 +94,9 @@ struct ObjectPose {
   /// Area of the top face's convex hull over its rectangle's area (1 for a full rectangle, about
   /// 0.79 for a disc's points in their square): low for the union of two touching faces.
   double top_fill = 0.0;
+  /// RMS residual of a circle fitted to the top face's hull vertices over its radius (1 when
+  /// fewer than 5): a disc's points, even too few to call it round, stay below a few percent.
+  double top_roundness = 1.0;
   Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
   double circle_radius = 0.0;    ///< when round (mm)
   /// Touching parts of about equal height that could not be separated: the pose may lie

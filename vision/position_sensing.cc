@@ -185,7 +185,8 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   report.objects =
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
   for (ObjectPose& pose : report.objects) {
-    pose.merged = !pose.round && pose.top_fill < options.min_top_fill;
+    // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
+    pose.merged = !pose.round && pose.top_fill < options.min_top_fill && pose.top_roundness > 0.06;
     if (pose.merged) ++report.merged;
   }
   report.timing_ms.pose = MillisecondsSince(start);

@@ -62,7 +62,9 @@ struct PositionSensingOptions {
   /// A part whose top face is not round and fills less than this fraction of its minimum-area
   /// rectangle (ObjectPose::top_fill) is touching parts the clustering could not separate: it is
   /// reported with `merged` set (OBJECTS.json "merged": true), and the robot's safety gate
-  /// refuses it, since its pose may lie between two parts. 0 flags none.
+  /// refuses it, since its pose may lie between two parts. Tops whose hull fits a circle to 6 %
+  /// of its radius (ObjectPose::top_roundness: a disc fills only pi / 4 of its square) are never
+  /// flagged. 0 flags none.
   double min_top_fill = 0.8;
   std::string Check() const;
 };
