@@ -124,7 +124,8 @@ std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingRe
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
     // A round part has no orientation: yaw 0 is sent (no needless wrist turn).
-    objects.push_back({id++, pose.centroid, pose.height_mm, pose.round ? 0.0 : pose.yaw_deg});
+    objects.push_back(
+        {id++, pose.centroid, pose.height_mm, pose.round ? 0.0 : pose.yaw_deg, pose.merged});
   }
   return objects;
 }

@@ -2,7 +2,11 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
+#include <string>
+#include <tuple>
+#include <utility>
 
 #include "app/cli_support.h"
 #include "app/commands.h"
@@ -14,10 +18,42 @@ namespace {
 struct RenderArgs {
   vision::SceneRenderOptions options;
   std::string out;
+  std::string size_range, height_range, brightness, texture = "random";
   bool quiet = false;
 };
 
+// "MIN,MAX" -> (MIN, MAX) with MIN <= MAX; throws std::invalid_argument naming the flag.
+std::pair<double, double> ParseRange(const std::string& flag, const std::string& text) {
+  double low = 0.0, high = 0.0;
+  char comma = 0;
+  std::istringstream in(text);
+  if (!(in >> low >> comma >> high) || comma != ',' || !(in >> std::ws).eof() || !(low <= high)) {
+    throw std::invalid_argument(flag + " must be MIN,MAX with MIN <= MAX (got '" + text + "')");
+  }
+  return {low, high};
+}
+
+void ResolveRenderArgs(RenderArgs& args) {
+  vision::SceneRenderOptions& o = args.options;
+  if (!args.size_range.empty()) {
+    std::tie(o.min_side_mm, o.max_side_mm) = ParseRange("--size-range", args.size_range);
+  }
+  if (!args.height_range.empty()) {
+    std::tie(o.min_height_mm, o.max_height_mm) = ParseRange("--height-range", args.height_range);
+  }
+  if (!args.brightness.empty()) {
+    std::tie(o.min_brightness, o.max_brightness) = ParseRange("--brightness", args.brightness);
+  }
+  if (const auto texture = vision::ParseTopTexture(args.texture)) {
+    o.top_texture = *texture;
+  } else {
+    throw std::invalid_argument("unknown --texture '" + args.texture + "' (plain or random)");
+  }
+  if (const std::string problem = o.Check(); !problem.empty()) throw std::invalid_argument(problem);
+}
+
 void RunRender(RenderArgs& args) {
+  ResolveRenderArgs(args);
   const auto start = std::chrono::steady_clock::now();
   CheckOutputFolderWritable("--out", args.out);  // before the seconds of ray casting
   // Everything is rendered before anything is written; progress goes to stderr (seconds).
@@ -32,10 +68,12 @@ void RunRender(RenderArgs& args) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (args.quiet) return;
-  std::printf("scene seed %llu: %zu parts, %dx%d px, target at %zu heights, %.2f s\n",
+  std::printf("scene seed %llu: %zu parts, %dx%d px, brightness %.2f, target at %zu heights, "
+              "%.2f s\n",
               static_cast<unsigned long long>(scene.seed), scene.objects.size(),
               scene.cameras.image_width, scene.cameras.image_height,
-              target.description.placements.size(), seconds);
+              vision::SceneBrightness(args.options), target.description.placements.size(),
+              seconds);
   std::printf("%3s %-8s %8s %8s %8s %8s  %s\n", "id", "shape", "x", "y", "height", "yaw", "size");
   int id = 1;
   for (const vision::SceneObject& object : scene.objects) {
@@ -74,6 +112,20 @@ void AddRenderCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--noise", args->options.noise_sigma_grey, "Sensor noise sigma (grey levels)")
       ->capture_default_str();
+  cmd->add_option("--blur", args->options.blur_sigma_px, "Gaussian optical blur sigma (px)")
+      ->capture_default_str();
+  cmd->add_option("--texture", args->texture,
+                  "Top faces: random (brushed metal with engraved marks at random places) or "
+                  "plain (uniform: only the outline shows)")
+      ->capture_default_str();
+  cmd->add_option("--size-range", args->size_range,
+                  "MIN,MAX (mm): the longest side of every top face lies in [MIN, MAX]; box "
+                  "length >= 1.2 x width (default 25,75)");
+  cmd->add_option("--height-range", args->height_range,
+                  "MIN,MAX (mm): part heights drawn uniformly in [MIN, MAX] (default 10,150)");
+  cmd->add_option("--brightness", args->brightness,
+                  "LOW,HIGH: per-scene illumination gain drawn uniformly from the seed (default "
+                  "1,1)");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
   cmd->callback([args] { RunRender(*args); });
 }

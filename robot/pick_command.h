@@ -22,6 +22,8 @@ struct PickCommand {
   double retreat_mm = 50.0;            ///< distance to lift after gripping
   GripperAction gripper = GripperAction::kClose;
   double speed_fraction = 0.2;         ///< of the robot's maximum speed, (0, 1]
+  /// The pose is of touching parts that sensing could not separate: the safety gate refuses it.
+  bool merged = false;
 
   /// Empty when every field is finite and in range; otherwise a one-line reason.
   std::string Check() const;

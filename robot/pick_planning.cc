@@ -30,6 +30,7 @@ PickCommand PlanPick(const SensedObject& object, const Eigen::Isometry3d& robot_
   command.sequence = sequence;
   command.capture_time_s = capture_time_s;
   command.object_id = object.id;
+  command.merged = object.merged;
   command.position_mm = robot_from_world * object.top_centre_world;
   const Eigen::Matrix3d rotation = robot_from_world.rotation();
   const double frame_yaw_deg = std::atan2(rotation(1, 0), rotation(0, 0)) * 180.0 / std::numbers::pi;
@@ -74,6 +75,7 @@ std::vector<SensedObject> SensedObjectsFromJson(const std::string& json_text) {
       if (item.contains("round") && item["round"].is_boolean() && item["round"].get<bool>()) {
         object.yaw_deg = 0.0;
       }
+      object.merged = item.value("merged", false);
       objects.push_back(object);
     } catch (const std::exception&) {
       throw std::invalid_argument(

@@ -19,6 +19,9 @@ struct SensedObject {
   Eigen::Vector3d top_centre_world = Eigen::Vector3d::Zero();  ///< mm, world frame
   double height_mm = 0.0;                                      ///< top face above the table
   double yaw_deg = 0.0;  ///< in the table plane, (-90, 90]; 0 for round parts (yaw is free)
+  /// Touching parts sensing could not separate (OBJECTS.json "merged": true): its pose may lie
+  /// between two parts, so the safety gate refuses it.
+  bool merged = false;
 };
 
 struct PickPlanningOptions {

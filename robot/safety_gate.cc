@@ -60,6 +60,10 @@ SafetyGate::SafetyGate(SafetyLimits limits, bool frame_calibrated)
 std::optional<std::string> SafetyGate::Admit(PickCommand* command) {
   if (!frame_calibrated_) return "no frame calibration (robot_from_world): nothing is sent";
   if (auto error = command->Check(); !error.empty()) return error;
+  if (command->merged) {
+    return "object " + std::to_string(command->object_id) +
+           " is touching parts sensing could not separate (merged): no single pick pose";
+  }
   if (last_sequence_ && command->sequence <= *last_sequence_) {
     return "sequence " + std::to_string(command->sequence) + " is stale or duplicate (last " +
            std::to_string(*last_sequence_) + ")";

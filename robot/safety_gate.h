@@ -1,7 +1,8 @@
 #pragma once
 // The safety gate every pick command passes before any transport: non-finite values, approach,
-// pick or retreat outside the workspace box, beyond reach, stale or duplicate sequence numbers
-// and a missing frame calibration are refused (never sent); the speed is clamped.
+// pick or retreat outside the workspace box, beyond reach, stale or duplicate sequence numbers,
+// a pose of merged (touching, unseparated) parts and a missing frame calibration are refused
+// (never sent); the speed is clamped.
 
 #include <Eigen/Core>
 #include <optional>

@@ -44,6 +44,10 @@ std::string ObjectPoseOptions::Check() const {
         << ")";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
+  } else if (!(outline_band_fraction >= 0.0 && outline_band_fraction < 0.5 &&
+               min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
+    out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
+           "min_outline_fraction in [0, 1]";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
   } else if (!(densest_slab_factor > 0.0)) {
@@ -213,8 +217,21 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
                                                                      : pose.yaw_moments_deg;
   Eigen::Vector2d centre = pose.top_rectangle.centre;
+  const std::vector<Eigen::Vector2d> top_hull = ConvexHull(top_xy);
+  if (const double area = pose.top_rectangle.length * pose.top_rectangle.width; area > 0.0) {
+    double hull_area = 0.0;  // shoelace
+    for (std::size_t i = 0; i < top_hull.size(); ++i) {
+      const Eigen::Vector2d& a = top_hull[i];
+      const Eigen::Vector2d& b = top_hull[(i + 1) % top_hull.size()];
+      hull_area += 0.5 * (a.x() * b.y() - a.y() * b.x());
+    }
+    pose.top_fill = std::abs(hull_area) / area;
+  }
+  if (top_hull.size() >= 5) {
+    if (const auto circle = FitCircle(top_hull)) pose.top_roundness = circle->rms_residual / circle->radius;
+  }
   if (options.max_circle_residual > 0.0) {
-    const std::vector<Eigen::Vector2d> hull = ConvexHull(top_xy);
+    const std::vector<Eigen::Vector2d>& hull = top_hull;
     constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
     // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
     constexpr std::size_t kMinCirclePoints = 60;
@@ -296,8 +313,140 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
   return count;
 }
 
+// Distance from `p` inside (or outside) `rectangle` to its outline.
+double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
+  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+  const Eigen::Vector2d d = p - rectangle.centre;
+  const double along = std::abs(d.dot(u)) - 0.5 * rectangle.length;
+  const double across = std::abs(d.dot(v)) - 0.5 * rectangle.width;
+  if (along <= 0.0 && across <= 0.0) return -std::max(along, across);  // inside
+  return Eigen::Vector2d(std::max(along, 0.0), std::max(across, 0.0)).norm();
+}
+
+// Fraction of the side of `piece`'s minimum-area rectangle that faces `towards` covered by the
+// piece's points (1 mm bins within `band` of the side): a part's own edge facing the gap is a
+// dense straight line; the cut across a split face is not.
+double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
+                          double band) {
+  const Rectangle2D rectangle = MinAreaRectangle(piece);
+  if (rectangle.length < 1.0) return 0.0;
+  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+  const Eigen::Vector2d to = towards - rectangle.centre;
+  // The facing side: the one whose outward normal points most towards `towards`.
+  const double along_u = to.dot(u) / (0.5 * rectangle.length);
+  const double along_v = to.dot(v) / std::max(0.5 * rectangle.width, 1e-9);
+  const bool across_u = std::abs(along_u) > std::abs(along_v);
+  const Eigen::Vector2d normal = across_u ? (along_u > 0 ? u : -u) : (along_v > 0 ? v : -v);
+  const Eigen::Vector2d direction = across_u ? v : u;
+  const double offset = across_u ? 0.5 * rectangle.length : 0.5 * rectangle.width;
+  const double side_length = across_u ? rectangle.width : rectangle.length;
+  const int bins = std::max(1, static_cast<int>(std::floor(side_length)));
+  std::vector<bool> covered(static_cast<std::size_t>(bins), false);
+  for (const auto& p : piece) {
+    const Eigen::Vector2d d = p - rectangle.centre;
+    if (offset - d.dot(normal) > band) continue;
+    const double t = d.dot(direction) + 0.5 * side_length;
+    const int bin = std::clamp(static_cast<int>(std::floor(t * bins / side_length)), 0, bins - 1);
+    covered[static_cast<std::size_t>(bin)] = true;
+  }
+  return static_cast<double>(std::count(covered.begin(), covered.end(), true)) / bins;
+}
+
 }  // namespace
 
+bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
+                                  const std::vector<Eigen::Vector2d>& second,
+                                  const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  Eigen::Vector2d first_centre = Eigen::Vector2d::Zero(), second_centre = Eigen::Vector2d::Zero();
+  for (const auto& p : first) first_centre += p;
+  for (const auto& p : second) second_centre += p;
+  first_centre /= static_cast<double>(first.size());
+  second_centre /= static_cast<double>(second.size());
+  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm) >=
+             options.min_facing_edge_coverage &&
+         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm) >=
+             options.min_facing_edge_coverage;
+}
+
+bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
+                                    const std::vector<Eigen::Vector2d>& second,
+                                    const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  const Rectangle2D a = MinAreaRectangle(first), b = MinAreaRectangle(second);
+
+  if (std::abs(NormaliseAxisAngle(a.yaw_deg - b.yaw_deg)) > options.max_end_yaw_difference_deg) {
+    return false;
+  }
+  if (std::abs(a.length - b.length) > options.max_end_length_difference * std::max(a.length, b.length)) {
+    return false;
+  }
+  // Side by side across their long axis, not shifted along it.
+  const double yaw = a.yaw_deg / kDegreesPerRadian;  // b's is within a few degrees
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw));
+  return std::abs((b.centre - a.centre).dot(u)) <=
+         options.max_end_length_difference * std::max(a.length, b.length);
+}
+
+bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
+                          const std::vector<Eigen::Vector2d>& second,
+                          const ObjectPoseOptions& options) {
+  if (first.size() < 3 || second.size() < 3) return false;
+  std::vector<Eigen::Vector2d> joint = first;
+  joint.insert(joint.end(), second.begin(), second.end());
+  // A round face: the joint hull fits one circle (two arcs of one rim).
+  const std::vector<Eigen::Vector2d> hull = ConvexHull(joint);
+  if (options.max_circle_residual > 0.0 && hull.size() >= 12) {
+    if (const auto circle = FitCircle(hull);
+        circle && circle->rms_residual < options.max_circle_residual * circle->radius) {
+      int on_rim = 0;
+      for (const auto& p : joint) {
+        if (std::abs((p - circle->centre).norm() - circle->radius) <=
+            std::max(options.top_layer_mm, options.outline_band_fraction * circle->radius)) {
+          ++on_rim;
+        }
+      }
+      if (on_rim >= options.min_outline_fraction * static_cast<double>(joint.size())) return true;
+    }
+  }
+  // A rectangular face: each piece lies along the joint rectangle's outline; two parts standing
+  // apart put their inner sides deep inside it.
+  const Rectangle2D rectangle = MinAreaRectangle(joint);
+  const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
+  for (const auto* piece : {&first, &second}) {
+    int on_outline = 0;
+    for (const auto& p : *piece) {
+      if (DistanceToRectangleOutline(rectangle, p) <= band) ++on_outline;
+    }
+    if (on_outline < options.min_outline_fraction * static_cast<double>(piece->size())) return false;
+  }
+  return true;
+}
+
+namespace {
+
+// The shape rules of the split-face join (the height and hidden-point rules come on top).
+bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<Eigen::Vector2d>& large,
+                   double gap_mm, const ObjectPoseOptions& options) {
+  if (!options.join_face_outlines) return gap_mm <= options.max_top_face_gap_mm;
+  // Two parts whose own edges face each other never join (seed 100: a flat 74 x 61 mm box and a
+  // piece at its height 80 mm away outlined a 159 x 66 mm "face").
+  if (PiecesFaceEachOtherWithEdges(small, large, options)) return false;
+  if (PiecesOutlineOneFace(small, large, options)) return true;
+  if (gap_mm > options.max_top_face_gap_mm) {
+    // A face's two strong ends (its sides along the epipolar lines are weak), each with the
+    // marks near it: parallel, as long as each other, side by side; not two parts with edges.
+    return PiecesAreOppositeEndsOfOneFace(small, large, options) &&
+           !PiecesFaceEachOtherWithEdges(small, large, options);
+  }
+  // Near pieces: two parts whose own edges face each other across the gap stay apart (two tall
+  // parts hide the table between them, so the hidden-point rule cannot see the gap).
+  return !(options.join_face_outlines && PiecesFaceEachOtherWithEdges(small, large, options));
+}
+
+}  // namespace
 
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
@@ -313,6 +462,7 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
     changed = false;
     std::vector<ObjectPose> poses;
     std::vector<std::vector<Eigen::Vector2d>> top_hulls;
+    std::vector<std::vector<Eigen::Vector2d>> tops;
     for (const auto& cluster : clusters) {
       poses.push_back(EstimateObjectPose(points_in_world, cluster, options));
       std::vector<Eigen::Vector2d> top_xy;
@@ -321,6 +471,7 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
         if (std::abs(p.z() - poses.back().height_mm) <= options.top_layer_mm) top_xy.push_back(p.head<2>());
       }
       top_hulls.push_back(ConvexHull(top_xy));
+      tops.push_back(std::move(top_xy));
     }
     std::vector<int> cluster_of_point(points_in_world.size(), -1);
     for (std::size_t c = 0; c < clusters.size(); ++c) {
@@ -345,7 +496,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
               std::abs(poses[small].height_mm - poses[large].height_mm) >
                   options.max_split_height_difference_mm ||
-              HullGap(top_hulls[small], top_hulls[large]) > options.max_top_face_gap_mm ||
+              !JoinAsOneFace(tops[small], tops[large],
+                             HullGap(top_hulls[small], top_hulls[large]), options) ||
               PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
                                         static_cast<int>(large), joint, height, options, weak) >
                   options.max_hidden_fraction *

@@ -39,9 +39,33 @@ struct ObjectPoseOptions {
   /// the circle, where the rectangle's centre shifts. Needs 8 hull vertices and 60 top points
   /// (a fragment of a face can fit some circle by chance). 0 disables the fit.
   double max_circle_residual = 0.02;
-  /// MergeTopFaceIslands joins two pieces of one split top face only when their outlines are
-  /// at most this far apart (mm): the featureless middle of a top face, not a part's length.
+  /// MergeTopFaceIslands joins two pieces of one split top face when their outlines are at
+  /// most this far apart (mm): the featureless middle of a textured top face. Further apart,
+  /// they join only when they outline one face together (PiecesOutlineOneFace): a plain top face
+  /// shows only its outline, whatever its size.
   double max_top_face_gap_mm = 30.0;
+  /// Join same-height pieces further apart than max_top_face_gap_mm when PiecesOutlineOneFace
+  /// says they outline one face (false: the rule before issue 12, for comparison).
+  bool join_face_outlines = true;
+  /// PiecesOutlineOneFace: a point is on the joint face's outline when it lies within this
+  /// fraction of the joint rectangle's width (circle: of its radius), at least top_layer_mm, of
+  /// it ...
+  double outline_band_fraction = 0.2;
+  /// ... and each piece needs this fraction of its top points on the outline.
+  double min_outline_fraction = 0.9;
+  /// Near pieces (within max_top_face_gap_mm) stay apart when each has an edge facing the other
+  /// (PiecesFaceEachOtherWithEdges): points within this distance (mm) of the facing side ...
+  double facing_edge_band_mm = 2.0;
+  /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
+  /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
+  double min_facing_edge_coverage = 0.6;
+  /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
+  /// ...
+  double max_end_yaw_difference_deg = 5.0;
+  /// ... their lengths differ by at most this fraction, and they are shifted along their long
+  /// axis by at most this fraction of it. Seed 5064: a 68 x 49 mm textured top came out as its
+  /// two 49 mm ends (48.4 x 21.9 and 47.9 x 16.3 mm pieces) 68 mm apart.
+  double max_end_length_difference = 0.15;
   /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
   /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
   double max_split_height_difference_mm = 2.0;
@@ -67,8 +91,17 @@ struct ObjectPose {
   double yaw_moments_deg = 0.0;  ///< thesis central moments, in (-90, 90]
   Rectangle2D top_rectangle;     ///< minimum-area rectangle of the top face's points
   bool round = false;            ///< the top face's hull fits a circle (see max_circle_residual)
+  /// Area of the top face's convex hull over its rectangle's area (1 for a full rectangle, about
+  /// 0.79 for a disc's points in their square): low for the union of two touching faces.
+  double top_fill = 0.0;
+  /// RMS residual of a circle fitted to the top face's hull vertices over its radius (1 when
+  /// fewer than 5): a disc's points, even too few to call it round, stay below a few percent.
+  double top_roundness = 1.0;
   Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
   double circle_radius = 0.0;    ///< when round (mm)
+  /// Touching parts of about equal height that could not be separated: the pose may lie
+  /// between them (OBJECTS.json "merged": true; the robot's safety gate refuses it).
+  bool merged = false;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points
@@ -123,6 +156,31 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
                                                   const std::vector<bool>* weak = nullptr);
+
+/// Whether two same-height pieces of top-face points (table plane, mm) are together the outline
+/// of one face: a plain top face shows only its outline, and its edges along the epipolar lines
+/// are weak, so it falls apart into parallel edges a face's width apart. True when the joint
+/// points' hull fits one circle and min_outline_fraction of them lie on it, or when
+/// min_outline_fraction of each piece's points lie within outline_band_fraction of the joint
+/// minimum-area rectangle's width from its outline (two parts standing apart put their inner
+/// sides deep inside the joint rectangle).
+bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
+                          const std::vector<Eigen::Vector2d>& second,
+                          const ObjectPoseOptions& options = {});
+
+/// Whether two same-height pieces (table plane, mm) are the two strong ends of one face: their
+/// minimum-area rectangles parallel (max_end_yaw_difference_deg), of about one length and side
+/// by side across it (max_end_length_difference).
+bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
+                                    const std::vector<Eigen::Vector2d>& second,
+                                    const ObjectPoseOptions& options = {});
+
+/// Whether each piece (table plane, mm) has a dense straight edge - its own minimum-area
+/// rectangle's side - facing the other: two parts standing apart, not the pieces of one face
+/// (the cut across a split textured face is no straight edge).
+bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
+                                  const std::vector<Eigen::Vector2d>& second,
+                                  const ObjectPoseOptions& options = {});
 
 /// Poses of all clusters, tallest first (the thesis's pick order).
 std::vector<ObjectPose> EstimateObjectPoses(const std::vector<Eigen::Vector3d>& points_in_world,

@@ -30,6 +30,10 @@ MatcherOptions PickCellMatcherOptions() {
   options.candidates.z_range_mm = std::make_pair(-5.0, 200.0);
   options.candidates.top_k = 8;
   options.energy.support_radius_px = 8.0;
+  // What `pick` and `serve` run (the hnn-default preset's objective, docs/accuracy.md): the
+  // pairwise term as geometric consistency times similarity. One source of truth: the CLI's
+  // CellSensingFlags start from these options.
+  options.energy.objective = hnn::Objective::kGeometrySimilarity;
   // The dusty table gives thousands of edge points that all lie at z = 0; the cap (kept spread
   // over the image) bounds the all-pairs epipolar gating, which dominates the time: 8000
   // features per image took 3.8 s of gating, 4000 take 0.8 s (seed 3, this machine).
@@ -48,6 +52,7 @@ std::string PositionSensingOptions::Check() const {
   if (min_strong_points < 1) return "min_strong_points must be >= 1";
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
+  if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -180,6 +185,11 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   });
   report.objects =
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
+  for (ObjectPose& pose : report.objects) {
+    // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
+    pose.merged = !pose.round && pose.top_fill < options.min_top_fill && pose.top_roundness > 0.06;
+    if (pose.merged) ++report.merged;
+  }
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;
@@ -220,7 +230,9 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {"length", pose.top_rectangle.length},
            {"width", pose.top_rectangle.width},
            {"yaw_deg", pose.top_rectangle.yaw_deg}}},
-         {"round", pose.round}});
+         {"round", pose.round},
+         {"top_fill", pose.top_fill},
+         {"merged", pose.merged}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},
@@ -249,7 +261,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
             {"in_small_clusters", report.clustering.n_in_small_clusters},
             {"island_merges", report.island_merges},
             {"without_top_face", report.without_top_face},
-            {"narrow_top_face", report.narrow_top_face}}},
+            {"narrow_top_face", report.narrow_top_face},
+            {"merged", report.merged}}},
           {"timing_ms",
            {{"match", report.timing_ms.match},
             {"triangulate", report.timing_ms.triangulate},

@@ -22,7 +22,8 @@ namespace hnnstereo::vision {
 
 /// Matcher settings measured to work in the pick cell: calibrated, unrectified pair gated by F
 /// (2 px), by the height of the triangulated candidate (-5 to 200 mm above the table), the 8
-/// best-correlated candidates per left feature, Canny features.
+/// best-correlated candidates per left feature, Canny features, the geometry x similarity
+/// objective. These are what `pick` and `serve` run when no matcher flag is given.
 MatcherOptions PickCellMatcherOptions();
 
 struct PositionSensingOptions {
@@ -58,6 +59,13 @@ struct PositionSensingOptions {
   /// 67.7 mm on the side of a 143 mm box; the narrowest true top face in seeds 100-119 is far
   /// wider (the renderer's smallest side is SceneRenderOptions::min_side_mm, 25 mm). 0 keeps all.
   double min_top_width_mm = 5.0;
+  /// A part whose top face is not round and fills less than this fraction of its minimum-area
+  /// rectangle (ObjectPose::top_fill) is touching parts the clustering could not separate: it is
+  /// reported with `merged` set (OBJECTS.json "merged": true), and the robot's safety gate
+  /// refuses it, since its pose may lie between two parts. Tops whose hull fits a circle to 6 %
+  /// of its radius (ObjectPose::top_roundness: a disc fills only pi / 4 of its square) are never
+  /// flagged. 0 flags none.
+  double min_top_fill = 0.8;
   std::string Check() const;
 };
 
@@ -86,6 +94,7 @@ struct PositionSensingReport {
   int island_merges = 0;                         ///< top-face islands joined to their part
   int without_top_face = 0;                      ///< clusters dropped by min_top_fraction
   int narrow_top_face = 0;                       ///< clusters dropped by min_top_width_mm
+  int merged = 0;                                ///< parts flagged merged (min_top_fill)
   std::vector<ObjectPose> objects;               ///< tallest first
   PositionSensingTiming timing_ms;
 };

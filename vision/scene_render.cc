@@ -233,7 +233,9 @@ double Shade(const Hit& hit, const Ray& ray, const std::vector<SceneObject>& obj
   const SceneObject& object = objects[static_cast<std::size_t>(hit.object)];
   const std::uint64_t seed = Mix(object.texture_seed);
   double albedo = object.albedo;
-  if (hit.surface == Surface::kTop) {
+  if (hit.surface == Surface::kTop && options.top_texture == TopTexture::kPlain) {
+    // Uniform metal: only the outline and the highlight.
+  } else if (hit.surface == Surface::kTop) {
     // Brushed metal along the part's x axis, then the engraved marks.
     albedo *= 0.8 + 0.3 * FractalNoise(hit.local.x() / 12.0, hit.local.y() / 0.9, seed);
     for (const Mark& mark : marks[static_cast<std::size_t>(hit.object)]) {
@@ -382,8 +384,13 @@ std::string SceneRenderOptions::Check() const {
     out << "min_gap_mm must be >= 0 (is " << min_gap_mm << ")";
   } else if (supersampling < 1 || supersampling > 8) {
     out << "supersampling must be in [1, 8] (is " << supersampling << ")";
-  } else if (blur_sigma_px < 0.0 || noise_sigma_grey < 0.0) {
-    out << "blur and noise must be >= 0";
+  } else if (!(blur_sigma_px >= 0.0 && blur_sigma_px <= 10.0) ||
+             !(noise_sigma_grey >= 0.0 && noise_sigma_grey <= 100.0)) {
+    out << "blur must be in [0, 10] px and noise in [0, 100] grey levels (are " << blur_sigma_px
+        << ", " << noise_sigma_grey << ")";
+  } else if (!(min_brightness > 0.0 && min_brightness <= max_brightness && max_brightness <= 4.0)) {
+    out << "brightness needs 0 < min_brightness <= max_brightness <= 4 (are " << min_brightness
+        << ", " << max_brightness << ")";
   } else if (target_heights_mm.size() < 2) {
     out << "the calibration target needs at least two heights (has " << target_heights_mm.size()
         << ")";
@@ -421,6 +428,7 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
   const Eigen::Vector3d centre = -M_inverse * P.col(3);
   std::vector<std::vector<Mark>> marks;
   for (const SceneObject& object : objects) marks.push_back(MarksOf(object));
+  const double gain = SceneBrightness(options);
   const Lighting light;
   const int s = options.supersampling;
   cv::Mat radiance(height, width, CV_32F);
@@ -436,7 +444,7 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
             sum += Shade(CastRay(ray, objects, kEpsilonMm), ray, objects, marks, options, light);
           }
         }
-        out[u] = static_cast<float>(255.0 * sum / (s * s));
+        out[u] = static_cast<float>(255.0 * gain * sum / (s * s));
       }
     }
   });
@@ -457,13 +465,29 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
   return image;
 }
 
-RenderedScene RenderScene(const SceneRenderOptions& options) {
-  if (const std::string problem = options.Check(); !problem.empty()) {
-    throw std::invalid_argument(problem);
-  }
-  RenderedScene scene;
-  scene.seed = options.seed;
-  scene.cameras = PickCellCameras(options.cameras);
+std::string_view TopTextureName(TopTexture texture) {
+  return texture == TopTexture::kPlain ? "plain" : "random";
+}
+
+std::optional<TopTexture> ParseTopTexture(std::string_view name) {
+  if (name == "plain") return TopTexture::kPlain;
+  if (name == "random") return TopTexture::kRandom;
+  return std::nullopt;
+}
+
+double SceneBrightness(const SceneRenderOptions& options) {
+  if (options.min_brightness == options.max_brightness) return options.min_brightness;
+  // Its own stream, so that a brightness range never changes which parts a seed draws.
+  std::mt19937_64 generator(Mix(options.seed * 0x5851f42d4c957f2dULL + 17));
+  std::uniform_real_distribution<double> uniform(options.min_brightness, options.max_brightness);
+  return uniform(generator);
+}
+
+namespace {
+
+std::vector<SceneObject> PlaceObjects(const SceneRenderOptions& options,
+                                      const calib::StereoCalibration& cameras) {
+  std::vector<SceneObject> objects;
   std::mt19937_64 generator(Mix(options.seed));
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   const int count = options.num_objects > 0
@@ -502,26 +526,26 @@ RenderedScene RenderScene(const SceneRenderOptions& options) {
                                 static_cast<std::uint64_t>(attempt));
       const std::vector<Eigen::Vector2d> footprint = object.Footprint();
       bool ok = true;
-      for (const SceneObject& other : scene.objects) {
+      for (const SceneObject& other : objects) {
         ok = ok && FootprintsApart(footprint, other.Footprint(), options.min_gap_mm);
       }
       for (const Eigen::Vector2d& corner : footprint) {
         for (double z : {0.0, object.height_mm()}) {
-          for (const auto* P : {&scene.cameras.P1, &scene.cameras.P2}) {
+          for (const auto* P : {&cameras.P1, &cameras.P2}) {
             ok = ok && InsideImage(*P, Eigen::Vector3d(corner.x(), corner.y(), z), width, height,
                                    options.image_margin_px);
           }
         }
       }
       if (!ok) continue;
-      std::vector<SceneObject> trial = scene.objects;
+      std::vector<SceneObject> trial = objects;
       trial.push_back(object);
       for (std::size_t i = 0; i < trial.size() && ok; ++i) {
-        ok = TopVisibility(trial, i, scene.cameras.C1) >= options.min_top_visibility &&
-             TopVisibility(trial, i, scene.cameras.C2) >= options.min_top_visibility;
+        ok = TopVisibility(trial, i, cameras.C1) >= options.min_top_visibility &&
+             TopVisibility(trial, i, cameras.C2) >= options.min_top_visibility;
       }
       if (!ok) continue;
-      scene.objects = std::move(trial);
+      objects = std::move(trial);
       placed = true;
     }
     if (!placed) {
@@ -530,10 +554,29 @@ RenderedScene RenderScene(const SceneRenderOptions& options) {
                                   " in the work area (too many parts or too large a gap)");
     }
   }
-  std::stable_sort(scene.objects.begin(), scene.objects.end(),
-                   [](const SceneObject& a, const SceneObject& b) {
-                     return a.height_mm() > b.height_mm();
-                   });
+  std::stable_sort(objects.begin(), objects.end(), [](const SceneObject& a, const SceneObject& b) {
+    return a.height_mm() > b.height_mm();
+  });
+  return objects;
+}
+
+}  // namespace
+
+std::vector<SceneObject> PlaceSceneObjects(const SceneRenderOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  return PlaceObjects(options, PickCellCameras(options.cameras));
+}
+
+RenderedScene RenderScene(const SceneRenderOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  RenderedScene scene;
+  scene.seed = options.seed;
+  scene.cameras = PickCellCameras(options.cameras);
+  scene.objects = PlaceObjects(options, scene.cameras);
   scene.left = RenderView(scene.cameras.P1, scene.objects, options, Mix(options.seed * 2 + 1));
   scene.right = RenderView(scene.cameras.P2, scene.objects, options, Mix(options.seed * 2 + 2));
   return scene;

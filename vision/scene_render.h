@@ -13,7 +13,9 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "calib/calibration.h"
@@ -52,6 +54,14 @@ struct PickCellCameraOptions {
   std::string Check() const;
 };
 
+/// How the top faces are drawn.
+enum class TopTexture {
+  kRandom,  ///< brushed metal with 4-8 engraved marks at random places (the default)
+  kPlain,   ///< uniform metal: a top face shows only its outline (the hard case for matching)
+};
+std::string_view TopTextureName(TopTexture texture);  ///< "random" or "plain"
+std::optional<TopTexture> ParseTopTexture(std::string_view name);
+
 /// How a scene is drawn.
 struct SceneRenderOptions {
   std::uint64_t seed = 1;               ///< everything random derives from this
@@ -61,7 +71,11 @@ struct SceneRenderOptions {
   double work_half_depth_mm = 100.0;    ///< ... and +- this along y (mm)
   double min_height_mm = 10.0;          ///< part heights drawn uniformly in [min, max] (mm)
   double max_height_mm = 150.0;
-  double min_side_mm = 25.0;            ///< box sides / cylinder diameters in [min, max] (mm)
+  /// Top-face sizes (mm, `render --size-range`): a box's width is drawn in
+  /// [min_side, max_side / min_aspect], then its length in [min_aspect * width, max_side]; a
+  /// cylinder's diameter in [min_side, max_side]. So the longest side of every top face lies in
+  /// [min_side, max_side].
+  double min_side_mm = 25.0;
   double max_side_mm = 75.0;
   double min_aspect = 1.2;              ///< box length / width >= this: the yaw is defined
   double cylinder_fraction = 0.25;      ///< probability that a part is a cylinder
@@ -74,6 +88,12 @@ struct SceneRenderOptions {
   int supersampling = 2;                ///< rays per pixel along each axis (anti-aliasing)
   double blur_sigma_px = 0.6;           ///< Gaussian blur (optics), px
   double noise_sigma_grey = 2.0;        ///< additive Gaussian sensor noise, grey levels
+  TopTexture top_texture = TopTexture::kRandom;  ///< `render --texture`
+  /// Per-scene illumination gain (`render --brightness`), drawn uniformly in [min, max] from the
+  /// seed (its own random stream: the parts are the same whatever the range); both images and
+  /// the whole scene get the same gain, before the sensor noise. 1, 1 = as lit by default.
+  double min_brightness = 1.0;
+  double max_brightness = 1.0;
   double table_albedo = 0.16;           ///< mean albedo of the dark table
   // The calibration target (target/): a rows x cols circle grid at several heights.
   calib::CircleGridGeometry target_grid{4, 5, 35.0, 8.0};
@@ -89,6 +109,14 @@ struct RenderedScene {
   std::vector<SceneObject> objects;       ///< tallest first
   std::uint64_t seed = 0;
 };
+
+/// The illumination gain of scene `options.seed` in [min_brightness, max_brightness].
+double SceneBrightness(const SceneRenderOptions& options);
+
+/// The parts of scene `options.seed` (tallest first), placed as RenderScene places them but not
+/// drawn: cheap, for choosing seeds and splitting results by the parts' sizes. Throws as
+/// RenderScene does.
+std::vector<SceneObject> PlaceSceneObjects(const SceneRenderOptions& options);
 
 /// The true cameras of the cell (P = K [R | -R C]).
 calib::StereoCalibration PickCellCameras(const PickCellCameraOptions& options);

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "robot/frames.h"
+#include "robot/pick_planning.h"
 #include "robot/safety_gate.h"
 
 namespace hnnstereo::robot {
@@ -94,6 +95,25 @@ TEST(SafetyGate, RefusalsGiveTheCoordinatesAndTheLimit) {
   ASSERT_NE(reach, std::nullopt);
   EXPECT_NE(reach->find("beyond reach: (390.0, 390.0,"), std::string::npos) << *reach;
   EXPECT_NE(reach->find("> max reach " ), std::string::npos) << *reach;
+}
+
+TEST(SafetyGate, RefusesMergedPartsFromObjectsJson) {
+  // Touching parts sensing could not separate carry "merged": true in OBJECTS.json; their pose
+  // may lie between two parts, so it never reaches a transport. The other part still does.
+  const std::vector<SensedObject> objects = SensedObjectsFromJson(
+      R"({"units":"mm","objects":[{"id":1,"centroid":[100,50,40],"height":40,"yaw_deg":0,
+          "points":300,"merged":true},{"id":2,"centroid":[0,50,30],"height":30,"yaw_deg":5,
+          "points":200}]})");
+  ASSERT_EQ(objects.size(), 2u);
+  EXPECT_TRUE(objects[0].merged);
+  EXPECT_FALSE(objects[1].merged);
+  SafetyGate gate(SafetyLimits{}, true);
+  PickCommand merged = PlanPick(objects[0], Eigen::Isometry3d::Identity(), {}, 1, 0.0);
+  const auto refusal = gate.Admit(&merged);
+  ASSERT_NE(refusal, std::nullopt);
+  EXPECT_NE(refusal->find("merged"), std::string::npos) << *refusal;
+  PickCommand single = PlanPick(objects[1], Eigen::Isometry3d::Identity(), {}, 2, 0.0);
+  EXPECT_EQ(gate.Admit(&single), std::nullopt);
 }
 
 TEST(SafetyGate, NoFrameCalibrationSendsNothing) {

@@ -176,3 +176,66 @@ TEST(ObjectPose, SplitTopFaceJoinsUnlessTheTableShowsBetween) {
 
 }  // namespace
 }  // namespace hnnstereo::vision
+
+namespace hnnstereo::vision {
+namespace {
+
+// A plain top face shows only its outline; its edges along the epipolar lines are weak, so it
+// falls apart into parallel edges a face's width apart (seed 549: a 75 x 59 mm top, 120 mm
+// tall). Two such pieces outline one face; two parts' complete outlines do not.
+TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
+  std::mt19937 random(kSeed);
+  // Two long edges of a 75 x 60 mm face, 60 mm apart (yaw 30 degrees).
+  std::vector<Eigen::Vector2d> face = RectanglePoints({100, 300}, 75, 60, 30, 400, 0.4, &random);
+  std::vector<Eigen::Vector2d> one_edge, other_edge;
+  for (std::size_t k = 0; k < face.size(); ++k) {
+    if (k % 4 == 0) one_edge.push_back(face[k]);
+    if (k % 4 == 1) other_edge.push_back(face[k]);
+  }
+  EXPECT_TRUE(PiecesOutlineOneFace(one_edge, other_edge));
+  // An edge and the rest of the outline.
+  std::vector<Eigen::Vector2d> rest;
+  for (std::size_t k = 0; k < face.size(); ++k) {
+    if (k % 4 != 0) rest.push_back(face[k]);
+  }
+  EXPECT_TRUE(PiecesOutlineOneFace(one_edge, rest));
+  // Larger than any default part: the rule has no size limit.
+  std::vector<Eigen::Vector2d> big = RectanglePoints({0, 0}, 150, 120, -10, 400, 0.4, &random);
+  std::vector<Eigen::Vector2d> big_a, big_b;
+  for (std::size_t k = 0; k < big.size(); ++k) (k % 4 == 0 ? big_a : big_b).push_back(big[k]);
+  EXPECT_TRUE(PiecesOutlineOneFace(big_a, big_b));
+  // Two arcs of one round plain top (60 mm diameter).
+  std::vector<Eigen::Vector2d> arc_a, arc_b;
+  for (int k = 0; k < 120; ++k) {
+    const double angle = (k % 60) * std::numbers::pi / 90.0 - std::numbers::pi / 3.0;  // +-60 deg
+    const Eigen::Vector2d on_rim = 30.0 * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+    (k < 60 ? arc_a : arc_b).push_back(Eigen::Vector2d(200, 300) + (k < 60 ? on_rim : -on_rim));
+  }
+  EXPECT_TRUE(PiecesOutlineOneFace(arc_a, arc_b));
+  // Two separate 40 x 30 mm parts 35 mm apart: their inner sides lie deep inside the joint
+  // rectangle.
+  const auto left_part = RectanglePoints({0, 0}, 40, 30, 0, 200, 0.4, &random);
+  const auto right_part = RectanglePoints({0, 65}, 40, 30, 0, 200, 0.4, &random);
+  EXPECT_FALSE(PiecesOutlineOneFace(left_part, right_part));
+  // A face's two ends (edge plus marks near it), 68 mm apart: parallel, as long, side by side.
+  std::vector<Eigen::Vector2d> end_a, end_b;
+  std::uniform_real_distribution<double> along(-24.0, 24.0), depth(0.0, 18.0);
+  for (int k = 0; k < 80; ++k) {
+    end_a.emplace_back(along(random), -34.0 + (k % 2 ? 0.0 : depth(random)));
+    end_b.emplace_back(along(random), 34.0 - (k % 2 ? 0.0 : depth(random)));
+  }
+  EXPECT_TRUE(PiecesAreOppositeEndsOfOneFace(end_a, end_b));
+  EXPECT_FALSE(PiecesFaceEachOtherWithEdges(end_a, end_b)) << "marks are no facing edge";
+  // Two parts' full outlines face each other with edges; shifted pieces are no face's ends.
+  EXPECT_TRUE(PiecesFaceEachOtherWithEdges(left_part, right_part));
+  std::vector<Eigen::Vector2d> shifted = end_b;
+  for (auto& p : shifted) p.x() += 30.0;
+  EXPECT_FALSE(PiecesAreOppositeEndsOfOneFace(end_a, shifted));
+  // A part and the far edge of another one.
+  std::vector<Eigen::Vector2d> far_edge;
+  for (std::size_t k = 0; k < right_part.size(); k += 4) far_edge.push_back(right_part[k + 1]);
+  EXPECT_FALSE(PiecesOutlineOneFace(left_part, far_edge));
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

@@ -138,3 +138,100 @@ TEST(SceneRender, BadOptionsAreRefusedWithTheFieldName) {
 
 }  // namespace
 }  // namespace hnnstereo::vision
+
+namespace hnnstereo::vision {
+namespace {
+
+// Issue 12: the new `render` flags are seeded and leave the default distribution alone.
+TEST(SceneRender, PlaceSceneObjectsIsWhatRenderSceneDraws) {
+  SceneRenderOptions options;
+  options.seed = 549;
+  const std::vector<SceneObject> placed = PlaceSceneObjects(options);
+  options.supersampling = 1;  // the pixels do not matter here
+  const RenderedScene scene = RenderScene(options);
+  ASSERT_EQ(placed.size(), scene.objects.size());
+  for (std::size_t i = 0; i < placed.size(); ++i) {
+    EXPECT_EQ(placed[i].centre_mm, scene.objects[i].centre_mm);
+    EXPECT_EQ(placed[i].size_mm, scene.objects[i].size_mm);
+  }
+  // The issue-12 regression scene: a 74.8 x 59.2 x 119.5 mm box first.
+  EXPECT_NEAR(placed[0].size_mm.x(), 74.8, 0.05);
+  EXPECT_NEAR(placed[0].size_mm.z(), 119.5, 0.05);
+}
+
+TEST(SceneRender, RangesTextureAndBrightnessAreSeededAndKeepTheParts) {
+  SceneRenderOptions defaults;
+  defaults.seed = 21;
+  defaults.num_objects = 3;
+  defaults.supersampling = 1;
+  const RenderedScene base = RenderScene(defaults);
+  // Brightness and texture change pixels only, never which parts a seed draws.
+  SceneRenderOptions other = defaults;
+  other.min_brightness = 0.7;
+  other.max_brightness = 1.3;
+  other.top_texture = TopTexture::kPlain;
+  other.blur_sigma_px = 1.0;
+  const RenderedScene changed = RenderScene(other);
+  ASSERT_EQ(changed.objects.size(), base.objects.size());
+  for (std::size_t i = 0; i < base.objects.size(); ++i) {
+    EXPECT_EQ(changed.objects[i].centre_mm, base.objects[i].centre_mm);
+  }
+  EXPECT_GT(cv::norm(base.left, changed.left, cv::NORM_L1), 0.0);
+  const double gain = SceneBrightness(other);
+  EXPECT_GE(gain, 0.7);
+  EXPECT_LE(gain, 1.3);
+  EXPECT_EQ(gain, SceneBrightness(other)) << "seeded";
+  EXPECT_EQ(SceneBrightness(defaults), 1.0);
+  // A plain top face is uniform: its centre's neighbourhood varies less than a textured one's.
+  const SceneObject& top = base.objects[0];
+  const Eigen::Vector2d centre =
+      (base.cameras.P1 * Eigen::Vector3d(top.centre_mm.x(), top.centre_mm.y(), top.height_mm())
+                             .homogeneous())
+          .hnormalized();
+  SceneRenderOptions plain = defaults;
+  plain.top_texture = TopTexture::kPlain;
+  plain.noise_sigma_grey = 0.0;
+  SceneRenderOptions textured = defaults;
+  textured.noise_sigma_grey = 0.0;
+  const cv::Rect window(static_cast<int>(centre.x()) - 4, static_cast<int>(centre.y()) - 4, 9, 9);
+  cv::Scalar mean, plain_sd, textured_sd;
+  cv::meanStdDev(RenderScene(plain).left(window), mean, plain_sd);
+  cv::meanStdDev(RenderScene(textured).left(window), mean, textured_sd);
+  EXPECT_LT(plain_sd[0], textured_sd[0]);
+  // Size and height ranges hold for every part: the longest top-face side and the height.
+  SceneRenderOptions ranged = defaults;
+  ranged.num_objects = 2;  // 1-9 parts this large do not fit the work area
+  ranged.min_side_mm = 90.0;
+  ranged.max_side_mm = 140.0;
+  ranged.min_height_mm = 20.0;
+  ranged.max_height_mm = 30.0;
+  for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+    ranged.seed = seed;
+    for (const SceneObject& object : PlaceSceneObjects(ranged)) {
+      EXPECT_GE(object.size_mm.head<2>().maxCoeff(), 90.0 - 1e-9);
+      EXPECT_LE(object.size_mm.head<2>().maxCoeff(), 140.0 + 1e-9);
+      EXPECT_GE(object.height_mm(), 20.0);
+      EXPECT_LE(object.height_mm(), 30.0);
+    }
+  }
+}
+
+TEST(SceneRender, BadRangesAreRefused) {
+  SceneRenderOptions options;
+  options.min_brightness = 1.2;
+  options.max_brightness = 1.1;
+  EXPECT_NE(options.Check().find("brightness"), std::string::npos);
+  options = SceneRenderOptions{};
+  options.min_side_mm = 80.0;
+  options.max_side_mm = 60.0;
+  EXPECT_FALSE(options.Check().empty());
+  options = SceneRenderOptions{};
+  options.blur_sigma_px = -1.0;
+  EXPECT_NE(options.Check().find("blur"), std::string::npos);
+  EXPECT_EQ(ParseTopTexture("plain"), TopTexture::kPlain);
+  EXPECT_EQ(ParseTopTexture("random"), TopTexture::kRandom);
+  EXPECT_EQ(ParseTopTexture("striped"), std::nullopt);
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision
