@@ -85,7 +85,13 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
                      options.dense_features, true});
   }
   const int per_run = options.warmup + options.repeats;
-  const int total = static_cast<int>(cases.size() * options.engines.size()) * per_run + options.repeats + 1;
+  const std::size_t n_variants =
+      options.engines.size() +
+      (std::count(options.engines.begin(), options.engines.end(), hnn::EngineKind::kOpenCL) > 0 &&
+               !options.opencl_storages.empty()
+           ? options.opencl_storages.size() - 1
+           : 0);
+  const int total = static_cast<int>(cases.size() * n_variants) * per_run + options.repeats + 1;
   int done = 0;
   auto progress = [&](const std::string& what) {
     ++done;
