@@ -286,44 +286,6 @@ float slot_weight(const int i, const int k, const int j, const int q,
   return w;
 }
 
-// Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
-// W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q; padded slots get 0.
-__kernel void build_weight_blocks(const int n_rows,
-                                  __global const int* row_count,
-                                  __global const int* feature_neighbour_offsets,
-                                  __global const int* feature_neighbours,
-                                  __global const float2* slot_right,
-                                  __global const float* slot_correlation,
-                                  __global const float2* feature_point,
-                                  const EnergyParams p,
-#if WEIGHTS == 1
-                                  __global half* blocks
-#else
-                                  __global float* blocks
-#endif
-                                  ) {
-  const int i = get_global_id(0);
-  if (i >= n_rows) return;
-  const int ni = row_count[i];
-  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
-    const int j = feature_neighbours[t];
-    const int nj = row_count[j];
-    for (int k = 0; k < ROW_PAD; ++k) {
-      for (int q = 0; q < ROW_PAD; ++q) {
-        const float w = (k < ni && q < nj)
-                            ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
-                            : 0.0f;
-        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + q;
-#if WEIGHTS == 1
-        vstore_half(w, at, blocks);
-#else
-        blocks[at] = w;
-#endif
-      }
-    }
-  }
-}
-
 // Column sums over padded slots (feature-vs-feature networks only): one work-item per column.
 __kernel void column_sums_blocked(const int n_columns,
                                   __global const int* column_offsets,
@@ -448,17 +410,19 @@ __kernel void row_decisions(const int n_rows,
   decisions[i] = decision;
 }
 
-// The weight blocks again, one work-item per weight: (block t, k, q) from the global id, so
-// every work-item runs the same straight-line code and PoCL's loopvec packs them into SIMD lanes
-// (build_weight_blocks, one work-item per row, has a data-dependent loop per row and runs
-// scalar). block_row[t] is the row i that block t belongs to.
+// The weight blocks, one work-item per weight: (block t, k, q) from the global id; block t of
+// row i holds W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q (padded slots get 0), and
+// block_row[t] is that row i. Every work-item runs the same straight-line code, which a
+// per-row kernel (a data-dependent loop per row) could not; PoCL 3's loop vectoriser still
+// declines it ("instruction return type cannot be vectorized"), so it runs one weight per lane
+// (docs/engine.md: the next step is an explicitly vectorised build).
 __kernel void build_weight_blocks_flat(const long n_weights,
                                        __global const int* block_row,
                                        __global const int* feature_neighbours,
                                        __global const int* row_count,
-                                       __global const float* slot_right,      // x, y per slot
+                                       __global const float2* slot_right,
                                        __global const float* slot_correlation,
-                                       __global const float* feature_point,   // x, y per row
+                                       __global const float2* feature_point,
                                        const EnergyParams p,
 #if WEIGHTS == 1
                                        __global half* blocks
@@ -474,19 +438,9 @@ __kernel void build_weight_blocks_flat(const long n_weights,
   const int q = kq - k * ROW_PAD;
   const int i = block_row[t];
   const int j = feature_neighbours[t];
-  const int a = i * ROW_PAD + k, b = j * ROW_PAD + q;
-  const float lax = feature_point[2 * i], lay = feature_point[2 * i + 1];
-  const float lbx = feature_point[2 * j], lby = feature_point[2 * j + 1];
-  float w = 2.0f * p.A * compatibility_xy(lax, lay, slot_right[2 * a], slot_right[2 * a + 1],
-                                          slot_correlation[a], lbx, lby, slot_right[2 * b],
-                                          slot_right[2 * b + 1], slot_correlation[b], p) +
-            p.weight_offset;
-#if DISTANCE_ATTENUATION
-  const float dx = lax - lbx, dy = lay - lby;
-  w *= 1.0f / (1.0f + exp(p.attenuation_slope * (sqrt(dx * dx + dy * dy) - p.attenuation_centre)));
-#endif
-  const bool real = k < row_count[i] && q < row_count[j] && !(i == j && k == q);
-  w = real ? w : 0.0f;
+  const float w = (k < row_count[i] && q < row_count[j])
+                      ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
+                      : 0.0f;
 #if WEIGHTS == 1
   vstore_half(w, at, blocks);
 #else
