@@ -346,8 +346,9 @@ class DeviceNetwork {
     blocks_ = cl::Buffer(context, CL_MEM_READ_WRITE, std::max<std::size_t>(block_bytes, 4));
 
     const EnergyParams params = Params(energy);
-    if (weights_mode != 2) {
-      // One work-item per weight (build_weight_blocks_flat): block t's row from block_row.
+    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
+    if (weights_mode != 2 && gpu) {
+      // A GPU: one work-item per weight (build_weight_blocks_flat); block t's row from block_row.
       std::vector<int> block_row(std::max<std::size_t>(n_blocks, 1), 0);
       for (int i = 0; i < L.n_rows; ++i) {
         for (int t = L.feature_neighbour_offsets[static_cast<std::size_t>(i)];
@@ -361,11 +362,16 @@ class DeviceNetwork {
       SetArgs(build_blocks_, n_weights, block_row_, neighbours_, row_count_, slot_right_,
               slot_correlation_, feature_point_, params, blocks_);
       build_range_ = RoundedRange(static_cast<std::size_t>(std::max<cl_long>(n_weights, 1)));
+    } else if (weights_mode != 2) {
+      // A CPU device: one work-item per row (measured faster here, docs/engine.md).
+      build_blocks_ = cl::Kernel(program, "build_weight_blocks");
+      SetArgs(build_blocks_, static_cast<cl_int>(L.n_rows), row_count_, neighbour_offsets_,
+              neighbours_, slot_right_, slot_correlation_, feature_point_, params, blocks_);
+      build_range_ = RoundedRange(rows);
     }
     // Rows per work-item: a GPU wants one row per work-item in work-groups of 64; on a CPU
     // device PoCL runs each work-group of one work-item as a loop over its rows with the
     // explicit vector loads (no cross-work-item vectorisation to undo).
-    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
     if (rows_per_item <= 0) rows_per_item = gpu ? 1 : std::clamp(L.n_rows / 256, 1, 64);
     const std::size_t items = (rows + static_cast<std::size_t>(rows_per_item) - 1) /
                               static_cast<std::size_t>(rows_per_item);

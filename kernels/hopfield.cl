@@ -286,6 +286,46 @@ float slot_weight(const int i, const int k, const int j, const int q,
   return w;
 }
 
+// Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
+// W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q; padded slots get 0. Measured faster than
+// one work-item per weight (build_weight_blocks_flat, kept for a GPU): the per-weight index
+// arithmetic and lookups cost more than the loop, as neither is vectorised by PoCL here.
+__kernel void build_weight_blocks(const int n_rows,
+                                  __global const int* row_count,
+                                  __global const int* feature_neighbour_offsets,
+                                  __global const int* feature_neighbours,
+                                  __global const float2* slot_right,
+                                  __global const float* slot_correlation,
+                                  __global const float2* feature_point,
+                                  const EnergyParams p,
+#if WEIGHTS == 1
+                                  __global half* blocks
+#else
+                                  __global float* blocks
+#endif
+                                  ) {
+  const int i = get_global_id(0);
+  if (i >= n_rows) return;
+  const int ni = row_count[i];
+  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+    const int j = feature_neighbours[t];
+    const int nj = row_count[j];
+    for (int k = 0; k < ROW_PAD; ++k) {
+      for (int q = 0; q < ROW_PAD; ++q) {
+        const float w = (k < ni && q < nj)
+                            ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
+                            : 0.0f;
+        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + q;
+#if WEIGHTS == 1
+        vstore_half(w, at, blocks);
+#else
+        blocks[at] = w;
+#endif
+      }
+    }
+  }
+}
+
 // Column sums over padded slots (feature-vs-feature networks only): one work-item per column.
 __kernel void column_sums_blocked(const int n_columns,
                                   __global const int* column_offsets,
