@@ -54,7 +54,7 @@ std::string ThroughputBenchOptions::Check() const {
   if (warmup < 0) return "warmup must be >= 0";
   if (!(max_disparity > 0)) return "max_disparity must be positive";
   for (int size : sparse_sizes) {
-    if (size < 1) return "problem sizes must be positive feature counts";
+    if (size < 0) return "problem sizes must be feature counts (0 = every feature)";
   }
   if (dense_features < 0) return "dense_features must be >= 0";
   if (engines.empty()) return "no engines to benchmark";
