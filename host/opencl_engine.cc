@@ -239,16 +239,17 @@ class DeviceNetwork {
     return most;
   }
 
-  // Auto: half-precision row blocks when padding every row to ROW_PAD slots at most doubles the
-  // stored weights (the disparity network's top-K rows, the dense network), else CSR. Half
-  // blocks gave the same 18,131 matches on Teddy as float blocks, at half the bytes a step.
+  // Auto: float row blocks when padding every row to ROW_PAD slots at most doubles the stored
+  // weights (the disparity network's top-K rows, the dense network), else CSR. Measured on
+  // Teddy, all edges, idle VM (docs/engine.md): float blocks 730 ms whole match, half blocks
+  // 827 ms (a step 4 % faster, but the half build slower), CSR 954 ms; same matches.
   WeightStorage ResolveStorage(WeightStorage asked) {
     row_pad_ = std::max(4, (MaxRowCount() + 3) / 4 * 4);
     const NetworkLayout& L = net_.layout;
     const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
     if (asked != WeightStorage::kAuto) return asked;
     return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
-               ? WeightStorage::kBlockedHalf
+               ? WeightStorage::kBlockedFloat
                : WeightStorage::kCsr;
   }
 
