@@ -239,17 +239,17 @@ class DeviceNetwork {
     return most;
   }
 
-  // Auto: float row blocks when padding every row to ROW_PAD slots at most doubles the stored
-  // weights (the disparity network's top-K rows, the dense network), else CSR. Measured on
-  // Teddy, all edges, idle VM (docs/engine.md): float blocks 730 ms whole match, half blocks
-  // 827 ms (a step 4 % faster, but the half build slower), CSR 954 ms; same matches.
+  // Auto: half-precision row blocks when padding every row to ROW_PAD slots at most doubles the
+  // stored weights (the disparity network's top-K rows, the dense network), else CSR. Measured
+  // on Teddy, all edges (docs/engine.md): half blocks 374 ms whole match, float 447 ms, CSR
+  // 865 ms; the same matches.
   WeightStorage ResolveStorage(WeightStorage asked) {
     row_pad_ = std::max(4, (MaxRowCount() + 3) / 4 * 4);
     const NetworkLayout& L = net_.layout;
     const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
     if (asked != WeightStorage::kAuto) return asked;
     return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
-               ? WeightStorage::kBlockedFloat
+               ? WeightStorage::kBlockedHalf
                : WeightStorage::kCsr;
   }
 
@@ -364,8 +364,11 @@ class DeviceNetwork {
               slot_correlation_, feature_point_, params, blocks_);
       build_range_ = RoundedRange(static_cast<std::size_t>(std::max<cl_long>(n_weights, 1)));
     } else if (weights_mode != 2) {
-      // A CPU device: one work-item per row (measured faster here, docs/engine.md).
-      build_blocks_ = cl::Kernel(program, "build_weight_blocks");
+      // A CPU device: one work-item per row (measured faster here, docs/engine.md); the
+      // default objective has an explicitly vectorised build.
+      const bool vec4 = energy.objective == Objective::kGeometrySimilarity &&
+                        !energy.distance_attenuation;
+      build_blocks_ = cl::Kernel(program, vec4 ? "build_weight_blocks_vec4" : "build_weight_blocks");
       SetArgs(build_blocks_, static_cast<cl_int>(L.n_rows), row_count_, neighbour_offsets_,
               neighbours_, slot_right_, slot_correlation_, feature_point_, params, blocks_);
       build_range_ = RoundedRange(rows);

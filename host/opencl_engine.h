@@ -18,7 +18,7 @@ namespace hnnstereo::hnn {
 
 /// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
 enum class WeightStorage {
-  kAuto,          ///< row blocks (float) when padding wastes < 2x, else CSR
+  kAuto,          ///< row blocks (half) when padding wastes < 2x, else CSR
   kCsr,           ///< per-neuron contiguous weights, one work-item per neuron, 3 launches a step
   kBlockedFloat,  ///< ROW_PAD x ROW_PAD float blocks per row pair, one fused launch a step
   kBlockedHalf,   ///< the same blocks in half precision (vload_half), float accumulation

@@ -487,3 +487,70 @@ __kernel void build_weight_blocks_flat(const long n_weights,
   blocks[at] = w;
 #endif
 }
+
+#if OBJECTIVE == 4 && !DISTANCE_ATTENUATION
+// The weight blocks of the geometry x similarity objective (hnn-default), one work-item per row,
+// written with float4 over four neighbour slots q at a time (explicit vectors: PoCL's loop
+// vectoriser declines the scalar builds). Same formula as compatibility() (objective 4) and
+// disparity_gradient(): w = 2 A g (M_a + 1)(M_b + 1) / 4 + offset, g = 2 exp(-DG / T) - 1.
+__kernel void build_weight_blocks_vec4(const int n_rows,
+                                       __global const int* row_count,
+                                       __global const int* feature_neighbour_offsets,
+                                       __global const int* feature_neighbours,
+                                       __global const float2* slot_right,
+                                       __global const float* slot_correlation,
+                                       __global const float2* feature_point,
+                                       const EnergyParams p,
+#if WEIGHTS == 1
+                                       __global half* blocks
+#else
+                                       __global float* blocks
+#endif
+                                       ) {
+  const int i = get_global_id(0);
+  if (i >= n_rows) return;
+  const int ni = row_count[i];
+  const float2 la = feature_point[i];
+  const int4 lane = (int4)(0, 1, 2, 3);
+  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+    const int j = feature_neighbours[t];
+    const int nj = row_count[j];
+    const float2 lb = feature_point[j];
+    for (int c = 0; c < ROW_CHUNKS; ++c) {
+      const int b0 = j * ROW_PAD + 4 * c;
+      const float4 rbx = (float4)(slot_right[b0].x, slot_right[b0 + 1].x, slot_right[b0 + 2].x,
+                                  slot_right[b0 + 3].x);
+      const float4 rby = (float4)(slot_right[b0].y, slot_right[b0 + 1].y, slot_right[b0 + 2].y,
+                                  slot_right[b0 + 3].y);
+      const float4 mb = vload4(0, slot_correlation + b0);
+      const int4 q = lane + 4 * c;
+      for (int k = 0; k < ROW_PAD; ++k) {
+        const float2 ra = slot_right[i * ROW_PAD + k];
+        const float ma = slot_correlation[i * ROW_PAD + k];
+        const float4 ddx = (ra.x - la.x) - (rbx - lb.x);
+        const float4 ddy = (ra.y - la.y) - (rby - lb.y);
+        const float4 change = sqrt(ddx * ddx + ddy * ddy);
+        const float4 csx = 0.5f * (la.x + ra.x) - 0.5f * (lb.x + rbx);
+        const float4 csy = 0.5f * (la.y + ra.y) - 0.5f * (lb.y + rby);
+        const float4 separation = sqrt(csx * csx + csy * csy);
+        float4 gradient = fmin(change / separation, (float4)(MAX_DISPARITY_GRADIENT));
+        const float4 coincident = select((float4)(MAX_DISPARITY_GRADIENT), (float4)(0.0f),
+                                         change < 1e-9f);
+        gradient = select(gradient, coincident, separation < 1e-9f);
+        const float4 g = 2.0f * native_exp(-gradient / p.T) - 1.0f;
+        float4 w = 2.0f * p.A * (g * (ma + 1.0f) * (mb + 1.0f) / 4.0f) + p.weight_offset;
+        // Vector comparisons give -1 (all bits) for true, which select() needs; a scalar one
+        // gives 1, so the row's own bound stays a scalar test.
+        const int4 real = (q < nj) & !((q == k) & (i == j ? (int4)(-1) : (int4)(0)));
+        w = k < ni ? select((float4)(0.0f), w, real) : (float4)(0.0f);
+        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + 4 * c;
+#if WEIGHTS == 1
+        vstore_half4(w, 0, blocks + at);
+#else
+        vstore4(w, 0, blocks + at);
+#endif
+      }
+    }
+  }
+}
+#endif
