@@ -103,13 +103,13 @@ void RunMatch(MatchArgs& args) {
     std::printf(
         "%zu matches from %d left / %d right features (%d neurons, %lld connections)\n"
         "engine %s on %s: %d iterations, %s, energy %.3f -> %.3f\n"
-        "time: features %.1f ms, candidates %.1f ms, weights %.1f ms, solve %.1f ms, decode %.1f "
-        "ms, total %.1f ms\nwrote %s%s%s%s%s\n",
+        "time: features %.1f ms, candidates %.1f ms, network %.1f ms, weights %.1f ms, solve %.1f "
+        "ms, decode %.1f ms, total %.1f ms\nwrote %s%s%s%s%s\n",
         report.matches.size(), report.n_left, report.n_right, report.n_neurons,
         static_cast<long long>(report.n_connections), report.solve.engine.c_str(),
         report.solve.device.c_str(), report.solve.iterations, report.solve.termination.c_str(),
         report.solve.energy_initial, report.solve.energy_final, report.timing_ms.features,
-        report.timing_ms.candidates, report.timing_ms.weights, report.timing_ms.solve,
+        report.timing_ms.candidates, report.timing_ms.network, report.timing_ms.weights, report.timing_ms.solve,
         report.timing_ms.decode, report.timing_ms.total, args.out.c_str(),
         args.report.empty() ? "" : ", ", args.report.c_str(), args.overlay.empty() ? "" : ", ",
         args.overlay.c_str());

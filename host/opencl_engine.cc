@@ -852,7 +852,9 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
   if (problems.empty()) return {};
   std::vector<SolveReport> reports(problems.size());
   try {
+    const auto network_start = Clock::now();
     DeviceNetwork device(runtime_, problems, energy, dynamics, memory_budget_bytes, options_);
+    const double network_ms = MillisecondsSince(network_start);
     const CombinedNetwork& net = device.network();
     for (std::size_t p = 0; p < problems.size(); ++p) {
       reports[p].engine = "opencl";
@@ -870,6 +872,7 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
       report.step_bytes = device.StepBytes();
       report.launches = device.launches();
       report.blocking_reads = device.blocking_reads();
+      report.network_ms = network_ms;  // the batch's, shared
     }
   } catch (const cl::Error& e) {
     throw ocl::OpenClError(e.what(), e.err());

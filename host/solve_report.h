@@ -35,6 +35,7 @@ struct SolveReport {
   double step_bytes = 0.0;
   int launches = 0;
   int blocking_reads = 0;
+  double network_ms = 0.0;            ///< the layout (neighbour lists) and, on a device, its buffers
   double weights_ms = 0.0;            ///< weight construction
   double solve_ms = 0.0;              ///< the dynamics to convergence
 };

@@ -151,7 +151,8 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       nlohmann::json run;
       run["case"] = c.name;
       run["engine"] = label;
-      std::vector<double> total_ms, solve_ms, weights_ms;
+      std::vector<double> total_ms, solve_ms, weights_ms, features_ms, candidates_ms, network_ms,
+          decode_ms;
       vision::MatchReport last;
       int runs_done = 0;
       try {
@@ -174,6 +175,10 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
             total_ms.push_back(last.timing_ms.total);
             solve_ms.push_back(last.timing_ms.solve);
             weights_ms.push_back(last.timing_ms.weights);
+            features_ms.push_back(last.timing_ms.features);
+            candidates_ms.push_back(last.timing_ms.candidates);
+            network_ms.push_back(last.timing_ms.network);
+            decode_ms.push_back(last.timing_ms.decode);
           }
           progress(what);
         }
@@ -210,6 +215,12 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       run["total_ms_runs"] = total_ms;
       run["solve_ms"] = solve;
       run["weights_ms"] = Median(weights_ms);
+      // Where the rest of the whole match goes (medians of each stage; they need not add up to
+      // the median total).
+      run["features_ms"] = Median(features_ms);
+      run["candidates_ms"] = Median(candidates_ms);
+      run["network_ms"] = Median(network_ms);
+      run["decode_ms"] = Median(decode_ms);
       run["connections_per_second"] = solve > 0 ? visited / (solve / 1000.0) : 0.0;
       run["bytes_per_second"] = solve > 0 ? bytes / (solve / 1000.0) : 0.0;
       run["steps"] = steps;

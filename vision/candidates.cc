@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <unordered_map>
 
 #include "calib/epipolar.h"
+#include <opencv2/core/utility.hpp>
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
@@ -76,10 +78,10 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   problem.dense = options.dense;
   report.right_points = right_points;
 
-  // The epipolar line of the current left feature, normalised so that a x + b y + c is the
-  // signed distance (eq. 6.14); computed once per left feature.
-  Eigen::Vector3d line = Eigen::Vector3d::Zero();
-  auto tau_of = [&](const Eigen::Vector2f& l, const Eigen::Vector2f& r) -> float {
+  // `line`: the epipolar line of the current left feature, normalised so that a x + b y + c is
+  // the signed distance (eq. 6.14); computed once per left feature.
+  auto tau_of = [&](const Eigen::Vector3d& line, const Eigen::Vector2f& l,
+                    const Eigen::Vector2f& r) -> float {
     if (options.rectified) return std::abs(l.y() - r.y());
     if (line.isZero()) return std::numeric_limits<float>::infinity();
     return static_cast<float>(std::abs(line.x() * r.x() + line.y() * r.y() + line.z()));
@@ -105,8 +107,12 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
     return X.z() >= options.z_range_mm->first && X.z() <= options.z_range_mm->second;
   };
 
-  std::vector<Scored> scored;
-  std::vector<float> profile;
+  // One left feature's candidates, appended to `out` (sorted by column); `scored` and `profile`
+  // are scratch space. Set below for the network kind.
+  std::function<void(int, std::vector<Scored>&, std::vector<float>&, std::vector<hnn::Candidate>&,
+                     std::int64_t&)>
+      candidates_of;
+  std::unordered_map<int, std::vector<int>> rows;  // rectified feature networks: right features by row
   if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
     // Columns are disparity levels min..max (thesis code, operation mode 3). A level beyond the
     // image width can never hold a candidate; refuse an absurd range before allocating for it.
@@ -121,13 +127,14 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
     const int d_min = static_cast<int>(std::ceil(options.min_disparity));
     const int d_max = static_cast<int>(std::floor(options.max_disparity));
     problem.n_columns = std::max(0, d_max - d_min + 1);
-    for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
+    candidates_of = [&, d_min, d_max](int i, std::vector<Scored>& scored, std::vector<float>& profile,
+                                      std::vector<hnn::Candidate>& out, std::int64_t& pairs_tested) {
       const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
       scored.clear();
       if (!options.zncc_peaks && !options.subpixel_peaks) {
         for (int d = d_min; d <= d_max; ++d) {
           const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
-          ++report.pairs_tested;
+          ++pairs_tested;
           if (!zncc.RightWindowInside(r)) continue;  // no such pixel in the right image
           const float m = zncc(l, r);
           if (m < options.min_correlation) continue;
@@ -137,7 +144,7 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
         // The ZNCC profile along the row, then its peaks (and/or sub-pixel vertices).
         profile.assign(static_cast<std::size_t>(problem.n_columns), -1.0f);
         for (int d = d_min; d <= d_max; ++d) {
-          ++report.pairs_tested;
+          ++pairs_tested;
           const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
           // -2 marks a level whose right window leaves the image: never a candidate.
           profile[static_cast<std::size_t>(d - d_min)] = zncc.RightWindowInside(r) ? zncc(l, r) : -2.0f;
@@ -159,26 +166,28 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
         }
       }
       KeepTopK(&scored, options.top_k);
-      for (const Scored& s : scored) problem.candidates.push_back({i, s.column, s.right_point, s.tau, s.correlation});
-    }
+      for (const Scored& s : scored) out.push_back({i, s.column, s.right_point, s.tau, s.correlation});
+    };
   } else {
     problem.n_columns = static_cast<int>(right_points.size());
     // Rectified: bucket right features by row for a direct lookup.
-    std::unordered_map<int, std::vector<int>> rows;
     if (options.rectified && !options.dense) {
       for (int k = 0; k < static_cast<int>(right_points.size()); ++k) {
         rows[static_cast<int>(std::lround(right_points[static_cast<std::size_t>(k)].y()))].push_back(k);
       }
     }
     const int row_reach = static_cast<int>(std::ceil(options.max_epipolar_distance_px));
-    for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
+    candidates_of = [&, row_reach](int i, std::vector<Scored>& scored, std::vector<float>&,
+                                   std::vector<hnn::Candidate>& out, std::int64_t& pairs_tested) {
       const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
-      if (!options.rectified) line = calib::EpipolarLineInRight(calibration->F, l.cast<double>());
+      const Eigen::Vector3d line = options.rectified
+                                       ? Eigen::Vector3d::Zero().eval()
+                                       : calib::EpipolarLineInRight(calibration->F, l.cast<double>());
       scored.clear();
       auto consider = [&](int k) {
         const Eigen::Vector2f& r = right_points[static_cast<std::size_t>(k)];
-        ++report.pairs_tested;
-        const float tau = tau_of(l, r);
+        ++pairs_tested;
+        const float tau = tau_of(line, l, r);
         if (!options.dense) {
           if (!(tau <= options.max_epipolar_distance_px)) return;
           if (options.rectified) {
@@ -204,8 +213,35 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
       if (!options.dense) KeepTopK(&scored, options.top_k);
       std::sort(scored.begin(), scored.end(),
                 [](const Scored& a, const Scored& b) { return a.column < b.column; });
-      for (const Scored& s : scored) problem.candidates.push_back({i, s.column, s.right_point, s.tau, s.correlation});
+      for (const Scored& s : scored) out.push_back({i, s.column, s.right_point, s.tau, s.correlation});
+    };
+  }
+  // Each left feature's candidates depend on that feature alone (ZNCC reads the images only):
+  // chunks of features run in parallel on OpenCV's thread pool, each into its own list, joined
+  // in feature order, so the problem is the same (sorted by (left, column)) for any thread count.
+  const int n_left = static_cast<int>(left_points.size());
+  const int n_chunks = std::max(1, std::min(n_left, 8 * std::max(1, cv::getNumThreads())));
+  std::vector<std::vector<hnn::Candidate>> chunk_candidates(static_cast<std::size_t>(n_chunks));
+  std::vector<std::int64_t> chunk_pairs(static_cast<std::size_t>(n_chunks), 0);
+  cv::parallel_for_(cv::Range(0, n_chunks), [&](const cv::Range& range) {
+    std::vector<Scored> scored;
+    std::vector<float> profile;
+    for (int c = range.start; c < range.end; ++c) {
+      const auto uc = static_cast<std::size_t>(c);
+      const int first = static_cast<int>(static_cast<std::int64_t>(n_left) * c / n_chunks);
+      const int last = static_cast<int>(static_cast<std::int64_t>(n_left) * (c + 1) / n_chunks);
+      for (int i = first; i < last; ++i) {
+        candidates_of(i, scored, profile, chunk_candidates[uc], chunk_pairs[uc]);
+      }
     }
+  });
+  std::size_t total = 0;
+  for (const auto& chunk : chunk_candidates) total += chunk.size();
+  problem.candidates.reserve(total);
+  for (std::size_t c = 0; c < chunk_candidates.size(); ++c) {
+    problem.candidates.insert(problem.candidates.end(), chunk_candidates[c].begin(),
+                              chunk_candidates[c].end());
+    report.pairs_tested += chunk_pairs[c];
   }
   report.time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

@@ -39,6 +39,7 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                          : report.solve.energy_trace}};
   json["timing_ms"] = {{"features", report.timing_ms.features},
                        {"candidates", report.timing_ms.candidates},
+                       {"network", report.timing_ms.network},
                        {"weights", report.timing_ms.weights},
                        {"solve", report.timing_ms.solve},
                        {"decode", report.timing_ms.decode},

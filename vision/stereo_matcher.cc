@@ -128,6 +128,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
     }
   }
   report.n_connections = report.solve.n_connections;
+  report.timing_ms.network = report.solve.network_ms;
   report.timing_ms.weights = report.solve.weights_ms;
   report.timing_ms.solve = report.solve.solve_ms;
 

@@ -80,7 +80,7 @@ struct StereoMatch {
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);
 
 struct TimingMs {
-  double features = 0, candidates = 0, weights = 0, solve = 0, decode = 0, total = 0;
+  double features = 0, candidates = 0, network = 0, weights = 0, solve = 0, decode = 0, total = 0;
 };
 
 struct MatchReport {

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "host/hopfield_energy.h"
 #include "host/hopfield_network.h"
@@ -152,6 +153,43 @@ TEST(HopfieldNetwork, RefusesAProblemOverTheMemoryBudget) {
     EXPECT_NE(message.find("memory budget"), std::string::npos) << message;
     EXPECT_NE(message.find("neurons"), std::string::npos) << message;
     EXPECT_NE(message.find("--max-features"), std::string::npos) << message;
+  }
+}
+
+// The neighbour lists (left features within the support radius, itself included, sorted) against
+// a brute-force search: clustered and spread points, enough features for the threaded search,
+// points on cell borders and at exactly the radius, and a huge extent (coarser grid cells).
+TEST(HopfieldNetwork, FeatureNeighboursAreThoseOfABruteForceSearch) {
+  std::mt19937 rng(7);
+  for (const auto& [n, extent] : std::vector<std::pair<int, float>>{
+           {1, 10.0f}, {50, 40.0f}, {6000, 450.0f}, {3000, 1e6f}, {5000, 60.0f}}) {
+    MatchingProblem problem;
+    problem.kind = NetworkKind::kFeatureVsDisparity;
+    problem.n_columns = 1;
+    std::uniform_real_distribution<float> coordinate(0.0f, extent);
+    for (int i = 0; i < n; ++i) {
+      // Every fourth point on the integer grid: distances of exactly the radius occur.
+      Eigen::Vector2f p(coordinate(rng), coordinate(rng));
+      if (i % 4 == 0) p = p.array().round();
+      problem.left_points.push_back(p);
+      problem.candidates.push_back({i, 0, p, 0.0f, 0.5f});
+    }
+    EnergyOptions options;
+    options.support_radius_px = 12.0;
+    const NetworkLayout layout = BuildLayout(problem, options);
+    ASSERT_EQ(layout.feature_neighbour_offsets.size(), static_cast<std::size_t>(n) + 1);
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::int32_t> expected;
+      for (int j = 0; j < n; ++j) {
+        const auto d = (problem.left_points[static_cast<std::size_t>(j)] -
+                        problem.left_points[static_cast<std::size_t>(i)]).cast<double>();
+        if (d.squaredNorm() <= 144.0) expected.push_back(j);
+      }
+      const std::vector<std::int32_t> found(
+          layout.feature_neighbours.begin() + layout.feature_neighbour_offsets[static_cast<std::size_t>(i)],
+          layout.feature_neighbours.begin() + layout.feature_neighbour_offsets[static_cast<std::size_t>(i) + 1]);
+      ASSERT_EQ(found, expected) << "feature " << i << " of " << n << " over " << extent << " px";
+    }
   }
 }
 

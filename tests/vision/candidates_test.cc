@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <opencv2/core.hpp>
+#include <opencv2/core/utility.hpp>
 #include <random>
 
 #include "calib/calibration.h"
@@ -169,6 +170,38 @@ TEST(BuildCandidates, HeightRangeGatesThroughTriangulation) {
     EXPECT_GE(d, 5.0f - 1e-3f);
     EXPECT_LE(d, 20.0f + 1e-3f);
     EXPECT_LT(c.epipolar_distance_px, 0.5f);
+  }
+}
+
+// Left features are gated in parallel chunks; the problem (order included) and the pair count
+// must not depend on the number of threads, for both network kinds.
+TEST(BuildCandidates, TheSameProblemOnOneThreadAsOnMany) {
+  const Pair pair = TexturedPair(4);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  const int threads = cv::getNumThreads();
+  for (const hnn::NetworkKind kind :
+       {hnn::NetworkKind::kFeatureVsFeature, hnn::NetworkKind::kFeatureVsDisparity}) {
+    CandidateOptions options;
+    options.rectified = true;
+    options.kind = kind;
+    options.max_disparity = 30;
+    options.top_k = 3;
+    cv::setNumThreads(4);
+    const CandidateReport many = BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options);
+    cv::setNumThreads(1);
+    const CandidateReport one = BuildCandidates(pair.left_points, pair.right_points, zncc, nullptr, options);
+    cv::setNumThreads(threads);
+    ASSERT_EQ(many.problem.Check(), "");
+    ASSERT_FALSE(one.problem.candidates.empty());
+    EXPECT_EQ(many.pairs_tested, one.pairs_tested);
+    ASSERT_EQ(many.problem.candidates.size(), one.problem.candidates.size());
+    for (std::size_t a = 0; a < one.problem.candidates.size(); ++a) {
+      const hnn::Candidate &x = many.problem.candidates[a], &y = one.problem.candidates[a];
+      EXPECT_EQ(x.left, y.left);
+      EXPECT_EQ(x.column, y.column);
+      EXPECT_EQ(x.right_point, y.right_point);
+      EXPECT_EQ(x.correlation, y.correlation);
+    }
   }
 }
 
