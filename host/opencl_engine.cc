@@ -90,7 +90,7 @@ class DeviceNetwork {
     if (storage_ == WeightStorage::kCsr) {
       Upload(energy, dynamics);
     } else {
-      UploadBlocked(energy, dynamics, engine.rows_per_item, memory_budget_bytes);
+      UploadBlocked(energy, dynamics, engine, memory_budget_bytes);
     }
   }
 
@@ -254,8 +254,9 @@ class DeviceNetwork {
   }
 
   void UploadBlocked(const EnergyOptions& energy, const DynamicsOptions& dynamics,
-                     int rows_per_item, std::size_t memory_budget_bytes) {
+                     const OpenClEngineOptions& engine, std::size_t memory_budget_bytes) {
     const NetworkLayout& L = net_.layout;
+    int rows_per_item = engine.rows_per_item;
     const cl::Context& context = runtime_.context();
     const int weights_mode = storage_ == WeightStorage::kBlockedFloat ? 0
                              : storage_ == WeightStorage::kBlockedHalf ? 1 : 2;
@@ -348,7 +349,10 @@ class DeviceNetwork {
 
     const EnergyParams params = Params(energy);
     const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
-    if (weights_mode != 2 && gpu) {
+    const bool per_weight =
+        engine.block_build == OpenClEngineOptions::BlockBuild::kPerWeight ||
+        (engine.block_build == OpenClEngineOptions::BlockBuild::kAuto && gpu);
+    if (weights_mode != 2 && per_weight) {
       // A GPU: one work-item per weight (build_weight_blocks_flat); block t's row from block_row.
       std::vector<int> block_row(std::max<std::size_t>(n_blocks, 1), 0);
       for (int i = 0; i < L.n_rows; ++i) {

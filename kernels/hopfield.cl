@@ -287,7 +287,8 @@ float slot_weight(const int i, const int k, const int j, const int q,
 }
 
 // Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
-// W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q; padded slots get 0. Measured faster than
+// W[(i,k),(j,q)] at t * ROW_PAD^2 + q * ROW_PAD + k (column q of the block contiguous, so the
+// step adds column q times V[j,q] with vector FMAs); padded slots get 0. Measured faster than
 // one work-item per weight (build_weight_blocks_flat, kept for a GPU): the per-weight index
 // arithmetic and lookups cost more than the loop, as neither is vectorised by PoCL here.
 __kernel void build_weight_blocks(const int n_rows,
@@ -315,7 +316,7 @@ __kernel void build_weight_blocks(const int n_rows,
         const float w = (k < ni && q < nj)
                             ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
                             : 0.0f;
-        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + q;
+        const size_t at = ((size_t)t * ROW_PAD + q) * ROW_PAD + k;
 #if WEIGHTS == 1
         vstore_half(w, at, blocks);
 #else
@@ -373,6 +374,13 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
     if (!active[network_of_row[i]]) continue;
     float acc[ROW_PAD];
     for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
+#if WEIGHTS != 2
+    float4 acc4[ROW_CHUNKS];
+    for (int c = 0; c < ROW_CHUNKS; ++c) acc4[c] = (float4)(0.0f);
+#if ROW_PAD == 4
+    float16 acc16 = (float16)(0.0f);
+#endif
+#endif
     for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
       const int j = feature_neighbours[t];
 #if WEIGHTS == 2
@@ -385,22 +393,39 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
         }
       }
 #else
-      float4 v[ROW_CHUNKS];
-      for (int c = 0; c < ROW_CHUNKS; ++c) v[c] = vload4(0, V_in + j * ROW_PAD + 4 * c);
+#if ROW_PAD == 4
+      // The whole 4 x 4 block as one 16-wide vector (one AVX-512 register on a CPU device):
+      // column q times V[j,q] with V[j] spread to (V0 x4, V1 x4, V2 x4, V3 x4); the four
+      // columns are summed once after the loop. One conversion and one FMA a block.
+      const float4 vj = vload4(j, V_in);
+#if WEIGHTS == 1
+      acc16 += vload_half16(t, blocks) * vj.s0000111122223333;
+#else
+      acc16 += vload16(t, blocks) * vj.s0000111122223333;
+#endif
+#else
+      // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
+      // a vector FMA, no horizontal sums.
       const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
-      for (int k = 0; k < ROW_PAD; ++k) {
-        float4 s = (float4)(0.0f);
+      for (int q = 0; q < ROW_PAD; ++q) {
+        const float vq = V_in[j * ROW_PAD + q];
         for (int c = 0; c < ROW_CHUNKS; ++c) {
 #if WEIGHTS == 1
-          s += vload_half4(0, blocks + block + k * ROW_PAD + 4 * c) * v[c];
+          acc4[c] += vload_half4(0, blocks + block + q * ROW_PAD + 4 * c) * vq;
 #else
-          s += vload4(0, blocks + block + k * ROW_PAD + 4 * c) * v[c];
+          acc4[c] += vload4(0, blocks + block + q * ROW_PAD + 4 * c) * vq;
 #endif
         }
-        acc[k] += (s.x + s.y) + (s.z + s.w);
       }
+#endif  // ROW_PAD == 4
 #endif
     }
+#if WEIGHTS != 2
+#if ROW_PAD == 4
+    acc4[0] = (acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef);
+#endif
+    for (int c = 0; c < ROW_CHUNKS; ++c) vstore4(acc4[c], c, acc);
+#endif
     float row_sum = 0.0f;
     for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
     float energy = 0.0f;
@@ -450,8 +475,8 @@ __kernel void row_decisions(const int n_rows,
   decisions[i] = decision;
 }
 
-// The weight blocks, one work-item per weight: (block t, k, q) from the global id; block t of
-// row i holds W[(i,k),(j,q)] at t * ROW_PAD^2 + k * ROW_PAD + q (padded slots get 0), and
+// The weight blocks, one work-item per weight: (block t, q, k) from the global id; block t of
+// row i holds W[(i,k),(j,q)] at t * ROW_PAD^2 + q * ROW_PAD + k (padded slots get 0), and
 // block_row[t] is that row i. Every work-item runs the same straight-line code, which a
 // per-row kernel (a data-dependent loop per row) could not; PoCL 3's loop vectoriser still
 // declines it ("instruction return type cannot be vectorized"), so it runs one weight per lane
@@ -473,9 +498,9 @@ __kernel void build_weight_blocks_flat(const long n_weights,
   const long at = get_global_id(0);
   if (at >= n_weights) return;
   const int t = (int)(at / (ROW_PAD * ROW_PAD));
-  const int kq = (int)(at - (long)t * (ROW_PAD * ROW_PAD));
-  const int k = kq / ROW_PAD;
-  const int q = kq - k * ROW_PAD;
+  const int qk = (int)(at - (long)t * (ROW_PAD * ROW_PAD));
+  const int q = qk / ROW_PAD;
+  const int k = qk - q * ROW_PAD;
   const int i = block_row[t];
   const int j = feature_neighbours[t];
   const float w = (k < row_count[i] && q < row_count[j])
@@ -489,10 +514,23 @@ __kernel void build_weight_blocks_flat(const long n_weights,
 }
 
 #if OBJECTIVE == 4 && !DISTANCE_ATTENUATION
+// First index in [first, last) of the sorted list a whose value is >= value (binary search).
+int lower_bound_int(__global const int* a, int first, int last, const int value) {
+  while (first < last) {
+    const int middle = first + (last - first) / 2;
+    if (a[middle] < value) first = middle + 1; else last = middle;
+  }
+  return first;
+}
+
 // The weight blocks of the geometry x similarity objective (hnn-default), one work-item per row,
 // written with float4 over four neighbour slots q at a time (explicit vectors: PoCL's loop
 // vectoriser declines the scalar builds). Same formula as compatibility() (objective 4) and
 // disparity_gradient(): w = 2 A g (M_a + 1)(M_b + 1) / 4 + offset, g = 2 exp(-DG / T) - 1.
+// The weight is symmetric (DG and the product of the similarities are, eq. 6.11), so row i
+// computes only its blocks with neighbours j >= i (a suffix of its sorted list) and also writes
+// each one transposed into row j's block for i (found by binary search in j's sorted list):
+// half the exponentials and square roots, every block written by exactly one work-item.
 __kernel void build_weight_blocks_vec4(const int n_rows,
                                        __global const int* row_count,
                                        __global const int* feature_neighbour_offsets,
@@ -512,10 +550,53 @@ __kernel void build_weight_blocks_vec4(const int n_rows,
   const int ni = row_count[i];
   const float2 la = feature_point[i];
   const int4 lane = (int4)(0, 1, 2, 3);
-  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
+  const int list_end = feature_neighbour_offsets[i + 1];
+  for (int t = lower_bound_int(feature_neighbours, feature_neighbour_offsets[i], list_end, i);
+       t < list_end; ++t) {
     const int j = feature_neighbours[t];
     const int nj = row_count[j];
     const float2 lb = feature_point[j];
+    // Row j's block for row i (the transpose); none for the row's own block.
+    const int mirror = j == i ? -1
+                              : lower_bound_int(feature_neighbours, feature_neighbour_offsets[j],
+                                                feature_neighbour_offsets[j + 1], i);
+#if ROW_PAD == 4
+    // The whole 4 x 4 block as one 16-wide vector, lane q * 4 + k (column-major): slot k of row
+    // i varies fastest (.s0123 repeated), slot q of row j slowest (.s0000111122223333). The
+    // mirror block is its transpose (.s048c159d26ae37bf).
+    {
+      const float8 ra01 = vload8(0, (__global const float*)(slot_right + i * 4));  // x0 y0 x1 y1 ..
+      const float8 rb01 = vload8(0, (__global const float*)(slot_right + j * 4));
+      const float4 rax = ra01.s0246, ray = ra01.s1357, rbx = rb01.s0246, rby = rb01.s1357;
+      const float4 ma = vload4(i, slot_correlation), mb = vload4(j, slot_correlation);
+      const float16 ax = rax.s0123012301230123, ay = ray.s0123012301230123;
+      const float16 bx = rbx.s0000111122223333, by = rby.s0000111122223333;
+      const float16 ddx = (ax - la.x) - (bx - lb.x);
+      const float16 ddy = (ay - la.y) - (by - lb.y);
+      const float16 change = sqrt(ddx * ddx + ddy * ddy);
+      const float16 csx = 0.5f * (la.x + ax) - 0.5f * (lb.x + bx);
+      const float16 csy = 0.5f * (la.y + ay) - 0.5f * (lb.y + by);
+      const float16 separation = sqrt(csx * csx + csy * csy);
+      float16 gradient = fmin(change / separation, (float16)(MAX_DISPARITY_GRADIENT));
+      const float16 coincident = select((float16)(MAX_DISPARITY_GRADIENT), (float16)(0.0f),
+                                        change < 1e-9f);
+      gradient = select(gradient, coincident, separation < 1e-9f);
+      const float16 g = 2.0f * native_exp(-gradient / p.T) - 1.0f;
+      const float16 w = 2.0f * p.A * (g * (ma.s0123012301230123 + 1.0f) *
+                                      (mb.s0000111122223333 + 1.0f) / 4.0f) + p.weight_offset;
+      const int16 k16 = (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
+      const int16 q16 = (int16)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
+      const int16 real = (k16 < ni) & (q16 < nj) & !((q16 == k16) & (i == j ? (int16)(-1) : (int16)(0)));
+      const float16 block = select((float16)(0.0f), w, real);
+#if WEIGHTS == 1
+      vstore_half16(block, t, blocks);
+      if (mirror >= 0) vstore_half16(block.s048c159d26ae37bf, mirror, blocks);
+#else
+      vstore16(block, t, blocks);
+      if (mirror >= 0) vstore16(block.s048c159d26ae37bf, mirror, blocks);
+#endif
+    }
+#else
     for (int c = 0; c < ROW_CHUNKS; ++c) {
       const int b0 = j * ROW_PAD + 4 * c;
       const float4 rbx = (float4)(slot_right[b0].x, slot_right[b0 + 1].x, slot_right[b0 + 2].x,
@@ -524,33 +605,63 @@ __kernel void build_weight_blocks_vec4(const int n_rows,
                                   slot_right[b0 + 3].y);
       const float4 mb = vload4(0, slot_correlation + b0);
       const int4 q = lane + 4 * c;
-      for (int k = 0; k < ROW_PAD; ++k) {
-        const float2 ra = slot_right[i * ROW_PAD + k];
-        const float ma = slot_correlation[i * ROW_PAD + k];
-        const float4 ddx = (ra.x - la.x) - (rbx - lb.x);
-        const float4 ddy = (ra.y - la.y) - (rby - lb.y);
-        const float4 change = sqrt(ddx * ddx + ddy * ddy);
-        const float4 csx = 0.5f * (la.x + ra.x) - 0.5f * (lb.x + rbx);
-        const float4 csy = 0.5f * (la.y + ra.y) - 0.5f * (lb.y + rby);
-        const float4 separation = sqrt(csx * csx + csy * csy);
-        float4 gradient = fmin(change / separation, (float4)(MAX_DISPARITY_GRADIENT));
-        const float4 coincident = select((float4)(MAX_DISPARITY_GRADIENT), (float4)(0.0f),
-                                         change < 1e-9f);
-        gradient = select(gradient, coincident, separation < 1e-9f);
-        const float4 g = 2.0f * native_exp(-gradient / p.T) - 1.0f;
-        float4 w = 2.0f * p.A * (g * (ma + 1.0f) * (mb + 1.0f) / 4.0f) + p.weight_offset;
-        // Vector comparisons give -1 (all bits) for true, which select() needs; a scalar one
-        // gives 1, so the row's own bound stays a scalar test.
-        const int4 real = (q < nj) & !((q == k) & (i == j ? (int4)(-1) : (int4)(0)));
-        w = k < ni ? select((float4)(0.0f), w, real) : (float4)(0.0f);
-        const size_t at = ((size_t)t * ROW_PAD + k) * ROW_PAD + 4 * c;
+      // Four slots k at a time, each a float4 over four slots q; both blocks are written with
+      // vector stores (below).
+      for (int k0 = 0; k0 < ROW_PAD; k0 += 4) {
+        float4 w[4];
+        for (int r = 0; r < 4; ++r) {
+          const int k = k0 + r;
+          const float2 ra = slot_right[i * ROW_PAD + k];
+          const float ma = slot_correlation[i * ROW_PAD + k];
+          const float4 ddx = (ra.x - la.x) - (rbx - lb.x);
+          const float4 ddy = (ra.y - la.y) - (rby - lb.y);
+          const float4 change = sqrt(ddx * ddx + ddy * ddy);
+          const float4 csx = 0.5f * (la.x + ra.x) - 0.5f * (lb.x + rbx);
+          const float4 csy = 0.5f * (la.y + ra.y) - 0.5f * (lb.y + rby);
+          const float4 separation = sqrt(csx * csx + csy * csy);
+          float4 gradient = fmin(change / separation, (float4)(MAX_DISPARITY_GRADIENT));
+          const float4 coincident = select((float4)(MAX_DISPARITY_GRADIENT), (float4)(0.0f),
+                                           change < 1e-9f);
+          gradient = select(gradient, coincident, separation < 1e-9f);
+          const float4 g = 2.0f * native_exp(-gradient / p.T) - 1.0f;
+          float4 wk = 2.0f * p.A * (g * (ma + 1.0f) * (mb + 1.0f) / 4.0f) + p.weight_offset;
+          // Vector comparisons give -1 (all bits) for true, which select() needs; a scalar one
+          // gives 1, so the row's own bound stays a scalar test.
+          const int4 real = (q < nj) & !((q == k) & (i == j ? (int4)(-1) : (int4)(0)));
+          w[r] = k < ni ? select((float4)(0.0f), wk, real) : (float4)(0.0f);
+        }
+        // Column-major blocks: block t takes the four columns q = 4c..4c+3 (rows k0..k0+3 of
+        // each, i.e. the register transpose of w); row j's block for i (the mirror) holds
+        // W[(j,q),(i,k)] = W[(i,k),(j,q)] at k * ROW_PAD + q, i.e. w[r] itself at column k.
+        const float4 m0 = (float4)(w[0].x, w[1].x, w[2].x, w[3].x);
+        const float4 m1 = (float4)(w[0].y, w[1].y, w[2].y, w[3].y);
+        const float4 m2 = (float4)(w[0].z, w[1].z, w[2].z, w[3].z);
+        const float4 m3 = (float4)(w[0].w, w[1].w, w[2].w, w[3].w);
+        const size_t at = ((size_t)t * ROW_PAD + 4 * c) * ROW_PAD + k0;
 #if WEIGHTS == 1
-        vstore_half4(w, 0, blocks + at);
+        vstore_half4(m0, 0, blocks + at);
+        vstore_half4(m1, 0, blocks + at + ROW_PAD);
+        vstore_half4(m2, 0, blocks + at + 2 * ROW_PAD);
+        vstore_half4(m3, 0, blocks + at + 3 * ROW_PAD);
 #else
-        vstore4(w, 0, blocks + at);
+        vstore4(m0, 0, blocks + at);
+        vstore4(m1, 0, blocks + at + ROW_PAD);
+        vstore4(m2, 0, blocks + at + 2 * ROW_PAD);
+        vstore4(m3, 0, blocks + at + 3 * ROW_PAD);
 #endif
+        if (mirror >= 0) {
+          for (int r = 0; r < 4; ++r) {
+            const size_t at_mirror = ((size_t)mirror * ROW_PAD + k0 + r) * ROW_PAD + 4 * c;
+#if WEIGHTS == 1
+            vstore_half4(w[r], 0, blocks + at_mirror);
+#else
+            vstore4(w[r], 0, blocks + at_mirror);
+#endif
+          }
+        }
       }
     }
+#endif  // ROW_PAD == 4
   }
 }
 #endif

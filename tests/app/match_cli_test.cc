@@ -53,7 +53,7 @@ TEST_F(MatchCli, WritesTheContractFiles) {
                           "iterations", "energy_initial", "energy_final", "timing_ms"}) {
     EXPECT_TRUE(report.contains(key)) << key;
   }
-  for (const char* key : {"features", "candidates", "weights", "solve", "decode", "total"}) {
+  for (const char* key : {"features", "candidates", "network", "weights", "solve", "decode", "total"}) {
     EXPECT_TRUE(report["timing_ms"].contains(key)) << key;
   }
   EXPECT_EQ(report["n_matches"].get<int>(), rows);

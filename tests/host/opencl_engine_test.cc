@@ -197,6 +197,33 @@ TEST_P(OpenClStorageTest, SolveAgreesWithTheCpuEngine) {
   }
 }
 
+// The GPU's block build (one work-item per weight), forced on the CPU device: the same solve as
+// the per-row build, for both objectives and for 4-slot (16-wide vector) and wider rows.
+TEST_P(OpenClStorageTest, PerWeightBlockBuildAgreesWithThePerRowBuild) {
+  const WeightStorage storage = GetParam();
+  if (storage != WeightStorage::kBlockedFloat && storage != WeightStorage::kBlockedHalf) {
+    GTEST_SKIP() << "row blocks only";
+  }
+  for (const Objective objective : {Objective::kGeometrySimilarity, Objective::kThesis}) {
+    for (int max_per_row : {0, 4}) {
+      const MatchingProblem problem = testing::SyntheticProblem(311, 150, 50, false, max_per_row);
+      EnergyOptions energy;
+      energy.support_radius_px = 15.0;
+      energy.objective = objective;
+      OpenClEngineOptions per_row{storage, 0}, per_weight{storage, 0};
+      per_row.block_build = OpenClEngineOptions::BlockBuild::kPerRow;
+      per_weight.block_build = OpenClEngineOptions::BlockBuild::kPerWeight;
+      const SolveReport a = OpenClEngine(*runtime_, per_row).Solve(problem, energy, DynamicsOptions{});
+      const SolveReport b = OpenClEngine(*runtime_, per_weight).Solve(problem, energy, DynamicsOptions{});
+      const std::string what = "objective " + std::to_string(static_cast<int>(objective)) +
+                               " per-row " + std::to_string(max_per_row);
+      EXPECT_EQ(MatchedNeurons(problem, a), MatchedNeurons(problem, b)) << what;
+      EXPECT_EQ(a.iterations, b.iterations) << what;
+      EXPECT_NEAR(a.energy_final, b.energy_final, 1e-4 * EnergyScale(a)) << what;
+    }
+  }
+}
+
 TEST_P(OpenClStorageTest, DenseNetworkAgreesWithTheCpuEngine) {
   const MatchingProblem problem = testing::SyntheticProblem(56, 30, 10, /*dense=*/true);
   EnergyOptions energy;

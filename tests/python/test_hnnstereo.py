@@ -70,7 +70,7 @@ def test_match_gives_the_cli_matches_for_teddy(teddy, cli_teddy):
     assert csv_rows(result.matches) == rows[1:]
     for key in REPORT_KEYS:
         assert key in result.report, key
-    for key in ["features", "candidates", "weights", "solve", "decode", "total"]:
+    for key in ["features", "candidates", "network", "weights", "solve", "decode", "total"]:
         assert key in result.report["timing_ms"], key
     assert set(cli_report) - {"left", "right"} == set(result.report)
     assert result.report["n_matches"] == cli_report["n_matches"]
