@@ -131,23 +131,24 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
                                       std::vector<hnn::Candidate>& out, std::int64_t& pairs_tested) {
       const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
       scored.clear();
+      // The ZNCC profile along the row (all disparities at once, vision/correlation.h).
+      profile.resize(static_cast<std::size_t>(problem.n_columns));
+      zncc.RowProfile(l, d_min, d_max, profile.data());
+      pairs_tested += problem.n_columns;
       if (!options.zncc_peaks && !options.subpixel_peaks) {
         for (int d = d_min; d <= d_max; ++d) {
           const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
-          ++pairs_tested;
           if (!zncc.RightWindowInside(r)) continue;  // no such pixel in the right image
-          const float m = zncc(l, r);
+          const float m = profile[static_cast<std::size_t>(d - d_min)];
           if (m < options.min_correlation) continue;
           scored.push_back({d - d_min, r, 0.0f, m});
         }
       } else {
-        // The ZNCC profile along the row, then its peaks (and/or sub-pixel vertices).
-        profile.assign(static_cast<std::size_t>(problem.n_columns), -1.0f);
+        // Its peaks (and/or sub-pixel vertices).
         for (int d = d_min; d <= d_max; ++d) {
-          ++pairs_tested;
           const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
           // -2 marks a level whose right window leaves the image: never a candidate.
-          profile[static_cast<std::size_t>(d - d_min)] = zncc.RightWindowInside(r) ? zncc(l, r) : -2.0f;
+          if (!zncc.RightWindowInside(r)) profile[static_cast<std::size_t>(d - d_min)] = -2.0f;
         }
         const int n = problem.n_columns;
         for (int c = 0; c < n; ++c) {

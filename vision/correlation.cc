@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -132,22 +134,16 @@ float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
   const float* left_corner = left_.ptr<float>(ly - radius_) + (lx - radius_);
   const float* right_corner = right_.ptr<float>(ry - radius_) + (rx - radius_);
   float dot = 0.0f;
-  double inverse_n = 0.0;  // 1 / window area, a constant for the thesis's 5 x 5 and 7 x 7
   switch (window_) {
-    case 5:
-      dot = WindowDot<5>(left_corner, left_stride, right_corner, right_stride);
-      inverse_n = 1.0 / 25.0;
-      break;
-    case 7:
-      dot = WindowDot<7>(left_corner, left_stride, right_corner, right_stride);
-      inverse_n = 1.0 / 49.0;
-      break;
-    default:
-      dot = WindowDot(window_, left_corner, left_stride, right_corner, right_stride);
-      inverse_n = 1.0 / (static_cast<double>(window_) * window_);
-      break;
+    case 5: dot = WindowDot<5>(left_corner, left_stride, right_corner, right_stride); break;
+    case 7: dot = WindowDot<7>(left_corner, left_stride, right_corner, right_stride); break;
+    default: dot = WindowDot(window_, left_corner, left_stride, right_corner, right_stride); break;
   }
+  return Normalise(dot, left_stats, right_stats);
+}
 
+float ZnccMatcher::Normalise(float dot, const float* left_stats, const float* right_stats) const {
+  const double inverse_n = 1.0 / (static_cast<double>(window_) * window_);
   // ZNCC = sum (L - mean_L)(R - mean_R) / (norm_L norm_R)
   //      = (sum L R - sum L * sum R / n) / (norm_L norm_R)   (eq. 6.9, square root restored).
   // The subtraction is done in double: both terms are large and nearly equal for low-contrast
@@ -158,6 +154,164 @@ float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
   const double zncc =
       covariance * static_cast<double>(left_stats[1]) * static_cast<double>(right_stats[1]);
   return static_cast<float>(std::clamp(zncc, -1.0, 1.0));
+}
+
+namespace {
+
+// Dots of one fixed window against `count` consecutive windows of a row, 16 at a time held in
+// two 8-lane vectors (GCC/Clang vector extensions, lowered to whatever the target has) over the
+// whole window; the rest one by one. The sums are exact integers, so neither the order nor an
+// FMA changes them. Cloned for AVX2 where the CPU has it (x86-64 function
+// multiversioning: the loader picks the clone).
+typedef float Lanes8 __attribute__((vector_size(32)));
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void RunDotsKernel(int window, const float* fixed, std::size_t fixed_stride,
+                   const float* run_corner, std::size_t run_stride, int count, float* dots) {
+  int e0 = 0;
+  for (; e0 + 16 <= count; e0 += 16) {
+    Lanes8 low = {}, high = {};
+    for (int dy = 0; dy < window; ++dy) {
+      const float* fixed_row = fixed + static_cast<std::size_t>(dy) * fixed_stride;
+      const float* run_row = run_corner + static_cast<std::size_t>(dy) * run_stride + e0;
+      for (int k = 0; k < window; ++k) {
+        Lanes8 x_low, x_high;
+        std::memcpy(&x_low, run_row + k, sizeof x_low);  // unaligned loads
+        std::memcpy(&x_high, run_row + k + 8, sizeof x_high);
+        low += fixed_row[k] * x_low;
+        high += fixed_row[k] * x_high;
+      }
+    }
+    std::memcpy(dots + e0, &low, sizeof low);
+    std::memcpy(dots + e0 + 8, &high, sizeof high);
+  }
+  for (int e = e0; e < count; ++e) {
+    float dot = 0.0f;
+    for (int dy = 0; dy < window; ++dy) {
+      const float* fixed_row = fixed + static_cast<std::size_t>(dy) * fixed_stride;
+      const float* run_row = run_corner + static_cast<std::size_t>(dy) * run_stride + e;
+      for (int k = 0; k < window; ++k) dot += fixed_row[k] * run_row[k];
+    }
+    dots[e] = dot;
+  }
+}
+
+}  // namespace
+
+void ZnccMatcher::RunDots(const float* fixed, std::size_t fixed_stride, const float* run_corner,
+                          std::size_t run_stride, int count, float* dots) const {
+  RunDotsKernel(window_, fixed, fixed_stride, run_corner, run_stride, count, dots);
+}
+
+void ZnccMatcher::RowProfile(const Eigen::Vector2f& left_point, int d_min, int d_max,
+                             float* out) const {
+  const int count = d_max - d_min + 1;
+  if (count <= 0) return;
+  // The fast path needs the left window inside and not flat, a right row inside, and the
+  // rounded right x to step by exactly one pixel a disparity; anything else (and every
+  // disparity whose right window leaves the image) is computed one by one.
+  auto one_by_one = [&](int d) {
+    out[d - d_min] = (*this)(left_point, Eigen::Vector2f(left_point.x() - static_cast<float>(d),
+                                                          left_point.y()));
+  };
+  const float left_x = left_point.x() + 0.5f, left_y = left_point.y() + 0.5f;
+  const auto radius = static_cast<float>(radius_);
+  const bool left_inside = left_x >= radius && left_x < static_cast<float>(left_.cols - radius_) &&
+                           left_y >= radius && left_y < static_cast<float>(left_.rows - radius_) &&
+                           left_y < static_cast<float>(right_.rows - radius_);
+  if (!left_inside) {
+    for (int d = d_min; d <= d_max; ++d) one_by_one(d);
+    return;
+  }
+  const int lx = static_cast<int>(left_x), ly = static_cast<int>(left_y);
+  const float* left_stats = left_stats_.ptr<float>(ly) + 2 * lx;
+  // The disparities whose rounded right x is rx(d_first) - (d - d_first), window inside.
+  auto right_x_of = [&](int d) { return left_point.x() - static_cast<float>(d) + 0.5f; };
+  int d_first = d_min;
+  while (d_first <= d_max && !(right_x_of(d_first) >= radius &&
+                               right_x_of(d_first) < static_cast<float>(right_.cols - radius_))) {
+    one_by_one(d_first++);
+  }
+  if (d_first > d_max) return;
+  const int rx_first = static_cast<int>(right_x_of(d_first));
+  int d_last = d_first;
+  while (d_last + 1 <= d_max && right_x_of(d_last + 1) >= radius &&
+         static_cast<int>(right_x_of(d_last + 1)) == rx_first - (d_last + 1 - d_first)) {
+    ++d_last;
+  }
+  for (int d = d_last + 1; d <= d_max; ++d) one_by_one(d);
+  if (left_stats[1] == 0.0f) {
+    for (int d = d_first; d <= d_last; ++d) out[d - d_min] = 0.0f;  // flat: no evidence
+    return;
+  }
+  const int run = d_last - d_first + 1;
+  const int rx_low = rx_first - (run - 1);  // the right x of d_last
+  thread_local std::vector<float> dots;
+  dots.resize(static_cast<std::size_t>(run));
+  RunDots(left_.ptr<float>(ly - radius_) + (lx - radius_), left_.step[0] / sizeof(float),
+          right_.ptr<float>(ly - radius_) + (rx_low - radius_), right_.step[0] / sizeof(float), run,
+          dots.data());
+  const float* right_stats_row = right_stats_.ptr<float>(ly);
+  for (int d = d_first; d <= d_last; ++d) {
+    const int rx = rx_first - (d - d_first);
+    const float* right_stats = right_stats_row + 2 * rx;
+    out[d - d_min] = right_stats[1] == 0.0f
+                         ? 0.0f
+                         : Normalise(dots[static_cast<std::size_t>(rx - rx_low)], left_stats, right_stats);
+  }
+}
+
+void ZnccMatcher::ReverseRowProfile(const Eigen::Vector2f& right_point, int d_min, int d_max,
+                                    float* out) const {
+  const int count = d_max - d_min + 1;
+  if (count <= 0) return;
+  const float x0 = std::round(right_point.x()), y0 = std::round(right_point.y());
+  auto one_by_one = [&](int d) {
+    out[d - d_min] = (*this)(Eigen::Vector2f(x0 + static_cast<float>(d), y0), right_point);
+  };
+  const float right_x = right_point.x() + 0.5f, right_y = right_point.y() + 0.5f;
+  const auto radius = static_cast<float>(radius_);
+  // The left point (x0 + d, y0) rounds to itself (integers), and y0 to the right point's row
+  // exactly when right_y truncates to y0 (not so for a NaN or for x.5 ties rounded the other
+  // way): then the left windows of a run of d are consecutive.
+  const bool right_inside = right_x >= radius &&
+                            right_x < static_cast<float>(right_.cols - radius_) &&
+                            right_y >= radius && right_y < static_cast<float>(right_.rows - radius_) &&
+                            y0 + 0.5f >= radius && y0 + 0.5f < static_cast<float>(left_.rows - radius_) &&
+                            static_cast<int>(right_y) == static_cast<int>(y0 + 0.5f) &&
+                            std::abs(x0) < 1e6f;
+  if (!right_inside) {
+    for (int d = d_min; d <= d_max; ++d) one_by_one(d);
+    return;
+  }
+  const int rx = static_cast<int>(right_x), ry = static_cast<int>(right_y);
+  const float* right_stats = right_stats_.ptr<float>(ry) + 2 * rx;
+  // Left x = x0 + d (an integer): inside for radius <= x < cols - radius.
+  const int x_base = static_cast<int>(x0);
+  const int d_first = std::max(d_min, radius_ - x_base);
+  const int d_last = std::min(d_max, left_.cols - radius_ - 1 - x_base);
+  for (int d = d_min; d <= d_max; ++d) {
+    if (d < d_first || d > d_last) one_by_one(d);
+  }
+  if (d_first > d_last) return;
+  if (right_stats[1] == 0.0f) {
+    for (int d = d_first; d <= d_last; ++d) out[d - d_min] = 0.0f;  // flat: no evidence
+    return;
+  }
+  const int run = d_last - d_first + 1;
+  thread_local std::vector<float> dots;
+  dots.resize(static_cast<std::size_t>(run));
+  RunDots(right_.ptr<float>(ry - radius_) + (rx - radius_), right_.step[0] / sizeof(float),
+          left_.ptr<float>(ry - radius_) + (x_base + d_first - radius_), left_.step[0] / sizeof(float),
+          run, dots.data());
+  const float* left_stats_row = left_stats_.ptr<float>(ry);
+  for (int d = d_first; d <= d_last; ++d) {
+    const float* left_stats = left_stats_row + 2 * (x_base + d);
+    out[d - d_min] = left_stats[1] == 0.0f
+                         ? 0.0f
+                         : Normalise(dots[static_cast<std::size_t>(d - d_first)], left_stats, right_stats);
+  }
 }
 
 bool ZnccMatcher::RightWindowInside(const Eigen::Vector2f& right_point) const {

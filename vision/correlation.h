@@ -25,7 +25,24 @@ class ZnccMatcher {
   /// True when the window centred at the (rounded) right point lies inside the right image.
   bool RightWindowInside(const Eigen::Vector2f& right_point) const;
 
+  /// The ZNCC profile along a row: out[d - d_min] = (*this)(left_point, right point
+  /// (left_point.x - d, left_point.y)) for d = d_min..d_max, bit for bit, computed for all
+  /// disparities at once (window dot products are integer sums, exact in float in any order,
+  /// so the shifted-row accumulation vectorises over d without changing a result).
+  void RowProfile(const Eigen::Vector2f& left_point, int d_min, int d_max, float* out) const;
+  /// The reverse search of a left-right check: out[d - d_min] = (*this)(left point
+  /// (round(right_point.x) + d, round(right_point.y)), right_point), bit for bit.
+  void ReverseRowProfile(const Eigen::Vector2f& right_point, int d_min, int d_max,
+                         float* out) const;
+
  private:
+  // Window dot products of the fixed window with top-left corner `fixed` against `count`
+  // windows of `run` whose top-left corners are run_corner, run_corner + 1, ... (one row).
+  void RunDots(const float* fixed, std::size_t fixed_stride, const float* run_corner,
+               std::size_t run_stride, int count, float* dots) const;
+  // ZNCC from a window dot product and the two windows' statistics (sum, inverse norm).
+  float Normalise(float dot, const float* left_stats, const float* right_stats) const;
+
   cv::Mat left_, right_;  // CV_32F copies
   // Per pixel, interleaved so that one call reads one cache line per image: the window sum
   // (an integer, exact in float) and 1 / sqrt(sum (I - mean)^2), 0 for a flat window or one

@@ -200,17 +200,21 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
   std::vector<StereoMatch> kept;
   kept.reserve(report->matches.size());
+  std::vector<float> reverse_profile;
   for (StereoMatch match : report->matches) {
     if (refinement.left_right_check) {
       // The reverse search: the best left point for this right point (winner-take-all ZNCC).
       float best = -std::numeric_limits<float>::infinity();
       Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
       if (rectified) {
+        // Every disparity's ZNCC at once (vision/correlation.h), then the same scan.
+        reverse_profile.resize(static_cast<std::size_t>(std::max(0, d_max - d_min + 1)));
+        zncc.ReverseRowProfile(match.right, d_min, d_max, reverse_profile.data());
         for (int d = d_min; d <= d_max; ++d) {
           const Eigen::Vector2f left(std::round(match.right.x()) + static_cast<float>(d),
                                      std::round(match.right.y()));
           if (left.x() > static_cast<float>(left_grey.cols - 1)) break;
-          const float score = zncc(left, match.right);
+          const float score = reverse_profile[static_cast<std::size_t>(d - d_min)];
           if (score > best) best = score, best_left = left;
         }
       } else {

@@ -151,6 +151,46 @@ TEST(ZnccMatcher, MatchesDoubleReferenceOnRandomImages) {
   }
 }
 
+// The row profiles (all disparities at once) equal the pair-by-pair ZNCC bit for bit: every
+// window size, points near every border, fractional and x.5 coordinates, flat patches (0),
+// images of different sizes, ranges reaching outside the image, and NaN.
+TEST(ZnccMatcher, RowProfilesEqualThePairByPairZnccBitForBit) {
+  std::mt19937 random(kSeed + 7);
+  for (const int window : {3, 5, 7, 9, 15}) {
+    cv::Mat left = RandomImage(40, 90, &random), right = RandomImage(40, 83, &random);
+    left(cv::Rect(30, 10, 20, 15)).setTo(77);   // flat patches: ZNCC 0
+    right(cv::Rect(5, 20, 25, 12)).setTo(140);
+    const ZnccMatcher zncc(left, right, window);
+    std::uniform_real_distribution<float> x(-3.0f, 95.0f), y(-3.0f, 43.0f);
+    std::vector<Eigen::Vector2f> points;
+    for (int n = 0; n < 300; ++n) {
+      Eigen::Vector2f p(x(random), y(random));
+      if (n % 3 == 0) p = p.array().round();
+      if (n % 7 == 0) p.x() = std::floor(p.x()) + 0.5f;
+      if (n % 11 == 0) p.y() = std::floor(p.y()) + 0.5f;
+      points.push_back(p);
+    }
+    points.emplace_back(std::numeric_limits<float>::quiet_NaN(), 10.0f);
+    for (const auto& [d_min, d_max] : std::vector<std::pair<int, int>>{{0, 64}, {-20, 20}, {5, 5}, {-90, 120}}) {
+      std::vector<float> profile(static_cast<std::size_t>(d_max - d_min + 1));
+      for (const Eigen::Vector2f& p : points) {
+        zncc.RowProfile(p, d_min, d_max, profile.data());
+        for (int d = d_min; d <= d_max; ++d) {
+          const float expected = zncc(p, Eigen::Vector2f(p.x() - static_cast<float>(d), p.y()));
+          ASSERT_EQ(profile[static_cast<std::size_t>(d - d_min)], expected)
+              << "window " << window << " point " << p.transpose() << " d " << d;
+        }
+        zncc.ReverseRowProfile(p, d_min, d_max, profile.data());
+        for (int d = d_min; d <= d_max; ++d) {
+          const Eigen::Vector2f left_point(std::round(p.x()) + static_cast<float>(d), std::round(p.y()));
+          ASSERT_EQ(profile[static_cast<std::size_t>(d - d_min)], zncc(left_point, p))
+              << "reverse: window " << window << " point " << p.transpose() << " d " << d;
+        }
+      }
+    }
+  }
+}
+
 TEST(ZnccMatcher, RejectsBadWindow) {
   const cv::Mat image(20, 20, CV_8UC1, cv::Scalar(0));
   for (const int window : {-1, 0, 1, 2, 4, 6, 16, 17}) {
