@@ -83,21 +83,25 @@ void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
   }
   const double radius2 = radius * radius;
   // Calls visit(i) for every feature i within the radius of feature j (j itself included).
-  auto for_each_within = [&](int j, auto&& visit) {
+  // About half the features of the 3 x 3 cells are within: the candidates are first compacted
+  // without a branch (a data-dependent branch here mispredicts half the time), then visited.
+  auto for_each_within = [&](int j, std::vector<std::int32_t>& within, auto&& visit) {
     const auto& p = problem.left_points[static_cast<std::size_t>(j)];
     const int cx = cell_x(p.x()), cy = cell_y(p.y());
+    std::size_t m = 0;
     for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, ny - 1); ++y) {
       const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx);
       const std::size_t first = cell_start[row + static_cast<std::size_t>(std::max(cx - 1, 0))];
       const std::size_t last = cell_start[row + static_cast<std::size_t>(std::min(cx + 1, nx - 1)) + 1];
+      if (within.size() < m + (last - first)) within.resize(2 * (m + (last - first)));
       for (std::size_t t = first; t < last; ++t) {
         const int i = cell_items[t];
-        if ((problem.left_points[static_cast<std::size_t>(i)] - p).cast<double>().squaredNorm() <=
-            radius2) {
-          visit(i);
-        }
+        within[m] = i;
+        m += (problem.left_points[static_cast<std::size_t>(i)] - p).cast<double>().squaredNorm() <=
+             radius2;
       }
     }
+    for (std::size_t k = 0; k < m; ++k) visit(within[k]);
   };
   // The j range in parts, one thread each: part p counts (then writes) the j of its range into
   // the slots of each list after those of parts < p, so the lists stay sorted and no two threads
@@ -115,8 +119,9 @@ void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
   in_parallel([&](int part) {
     std::vector<std::int32_t>& count = part_count[static_cast<std::size_t>(part)];
     count.assign(static_cast<std::size_t>(n), 0);
+    std::vector<std::int32_t> within;
     for (int j = first_j(part); j < first_j(part + 1); ++j) {
-      for_each_within(j, [&](int i) { ++count[static_cast<std::size_t>(i)]; });
+      for_each_within(j, within, [&](int i) { ++count[static_cast<std::size_t>(i)]; });
     }
   });
   for (int i = 0; i < n; ++i) {
@@ -132,8 +137,9 @@ void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
   neighbours->resize(static_cast<std::size_t>(offsets->back()));
   in_parallel([&](int part) {
     std::vector<std::int32_t>& fill = part_count[static_cast<std::size_t>(part)];
+    std::vector<std::int32_t> within;
     for (int j = first_j(part); j < first_j(part + 1); ++j) {
-      for_each_within(j, [&](int i) {
+      for_each_within(j, within, [&](int i) {
         (*neighbours)[static_cast<std::size_t>(fill[static_cast<std::size_t>(i)]++)] = j;
       });
     }

@@ -345,7 +345,8 @@ class DeviceNetwork {
                               sizeof(float) * static_cast<std::size_t>(std::max(L.n_columns, 1)));
     network_energy_ = cl::Buffer(context, CL_MEM_READ_WRITE,
                                  sizeof(float) * static_cast<std::size_t>(n_networks()));
-    blocks_ = cl::Buffer(context, CL_MEM_READ_WRITE, std::max<std::size_t>(block_bytes, 4));
+    // Every block is written by the build before a step reads it: a reused buffer will do.
+    blocks_ = runtime_.ScratchBuffer("weight blocks", block_bytes);
 
     const EnergyParams params = Params(energy);
     const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;

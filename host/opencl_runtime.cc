@@ -268,4 +268,15 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
   return programs_.emplace(key, std::move(program)).first->second;
 }
 
+cl::Buffer Runtime::ScratchBuffer(const std::string& purpose, std::size_t bytes) {
+  bytes = std::max<std::size_t>(bytes, 4);
+  auto& [buffer, size] = scratch_[purpose];
+  if (size < bytes) {
+    buffer = cl::Buffer();  // release the old one before allocating the larger
+    buffer = cl::Buffer(context_, CL_MEM_READ_WRITE, bytes);
+    size = bytes;
+  }
+  return buffer;
+}
+
 }  // namespace hnnstereo::ocl

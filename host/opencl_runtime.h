@@ -85,6 +85,14 @@ class Runtime {
   /// (source hash, options) and cached here. Throws ProgramBuildError with the log on failure.
   const cl::Program& Program(const std::string& name, const std::string& options);
 
+  /// A read-write device buffer of at least `bytes` for `purpose`, the one of the last call
+  /// with that purpose when it is large enough (grown otherwise). On a CPU device the first
+  /// touch of a fresh buffer costs a page fault per 4 KB: on all of Teddy's 66 MB of weight
+  /// blocks that was ~20-30 ms of every match. Its contents are whatever the last user left;
+  /// the caller must write before reading, and be done with it before the next call with the
+  /// same purpose (a runtime is used from one thread, like Program()).
+  cl::Buffer ScratchBuffer(const std::string& purpose, std::size_t bytes);
+
  private:
   Runtime(cl::Context context, cl::Device device, std::string description);
   cl::Context context_;
@@ -92,6 +100,7 @@ class Runtime {
   cl::CommandQueue queue_;
   std::string description_;
   std::map<std::tuple<std::string, std::string>, cl::Program> programs_;
+  std::map<std::string, std::pair<cl::Buffer, std::size_t>> scratch_;
 };
 
 }  // namespace hnnstereo::ocl
