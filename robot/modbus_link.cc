@@ -352,9 +352,10 @@ class ModbusServerLink final : public RobotLink {
     std::vector<pollfd> fds;
     while (!stopping_) {
       fds.clear();
-      fds.push_back({listen_fd_, POLLIN, 0});
+      const bool accepting = Clock::now() >= accept_paused_until_;
+      fds.push_back({listen_fd_, static_cast<short>(accepting ? POLLIN : 0), 0});
       fds.push_back({wake_pipe_[0], POLLIN, 0});
-      auto wake = next_heartbeat;
+      auto wake = accepting ? next_heartbeat : std::min(next_heartbeat, accept_paused_until_);
       for (const Connection& connection : connections_) {
         short events = 0;
         // Back-pressure: a client with unanswered frames buffered or replies piling up is not
@@ -615,7 +616,15 @@ class ModbusServerLink final : public RobotLink {
       socklen_t length = sizeof address;
       const int fd = accept4(listen_fd_, reinterpret_cast<sockaddr*>(&address), &length,
                              SOCK_CLOEXEC | SOCK_NONBLOCK);
-      if (fd < 0) return;  // none left (the listening socket is non-blocking)
+      if (fd < 0) {
+        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
+          accept_paused_until_ = Clock::now() + kAcceptBackoff;
+          std::lock_guard lock(mutex_);
+          DeferLogLocked("modbus-server: cannot accept a connection: " +
+                         std::string(std::strerror(errno)));
+        }
+        return;  // none left (the listening socket is non-blocking), or no descriptors
+      }
       Connection connection;
       connection.fd = fd;
       connection.peer = PeerAddress(address);
@@ -822,9 +831,16 @@ class ModbusServerLink final : public RobotLink {
   }
   // The log callback is called on the caller's thread only (it need not be thread-safe): lines
   // from the server thread wait here until the next WaitForTrigger/WaitForAcknowledge.
-  // Bounded: a storm of hostile connections between two cycles must not grow memory.
+  // Bounded, in memory and in rate: a storm of hostile connections must neither grow memory
+  // nor flood the cell's log (at most kMaxLogLinesPerSecond lines, the rest counted).
   void DeferLogLocked(std::string line) {
-    if (deferred_logs_.size() < kMaxDeferredLogs) {
+    const auto now = Clock::now();
+    if (now - log_window_start_ >= std::chrono::seconds(1)) {
+      log_window_start_ = now;
+      log_window_lines_ = 0;
+    }
+    if (deferred_logs_.size() < kMaxDeferredLogs && log_window_lines_ < kMaxLogLinesPerSecond) {
+      ++log_window_lines_;
       deferred_logs_.push_back(std::move(line));
     } else {
       ++suppressed_logs_;
@@ -905,6 +921,10 @@ class ModbusServerLink final : public RobotLink {
   /// A new connection is safe from its own peer's newer connections for this long.
   static constexpr milliseconds kEvictionGrace{200};
   static constexpr std::size_t kMaxDeferredLogs = 200;
+  static constexpr int kMaxLogLinesPerSecond = 20;
+  /// After accept fails for want of descriptors (EMFILE, ENFILE), the listening socket is not
+  /// watched for this long: the pending connection stays readable, and poll() would spin.
+  static constexpr milliseconds kAcceptBackoff{100};
 
   std::string host_;
   ModbusUriOptions query_;
@@ -914,6 +934,7 @@ class ModbusServerLink final : public RobotLink {
   int wake_pipe_[2] = {-1, -1};
   std::vector<Connection> connections_;  // server thread only
   int last_connection_id_ = 0;           // server thread only
+  Clock::time_point accept_paused_until_{};  // server thread only
   std::atomic<bool> stopping_{false};
   std::thread thread_;
 
@@ -923,6 +944,8 @@ class ModbusServerLink final : public RobotLink {
   std::deque<CommandEvent> events_;
   std::vector<std::string> deferred_logs_;
   std::size_t suppressed_logs_ = 0;
+  Clock::time_point log_window_start_{};
+  int log_window_lines_ = 0;
   std::set<int> live_connections_;
   int trigger_owner_ = -1;    ///< connection that sent the trigger being served
   bool owner_lost_ = false;   ///< ... and has disconnected since

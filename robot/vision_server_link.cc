@@ -318,8 +318,9 @@ class VisionServerLink final : public RobotLink {
   void PollOnce(Clock::time_point deadline) {
     CloseMarked();
     std::vector<pollfd> fds;
-    fds.push_back({listen_fd_, POLLIN, 0});
-    auto wake = deadline;
+    const bool accepting = Clock::now() >= accept_paused_until_;
+    fds.push_back({listen_fd_, static_cast<short>(accepting ? POLLIN : 0), 0});
+    auto wake = accepting ? deadline : std::min(deadline, accept_paused_until_);
     for (const Connection& connection : connections_) {
       short events = 0;
       if (connection.input.size() < ReadAheadBytes()) events |= POLLIN;
@@ -379,8 +380,8 @@ class VisionServerLink final : public RobotLink {
         continue;
       }
       if (connection.log_close) {
-        Log((connection.id == robot_id_ ? "robot connection closed: " : "connection from " +
-             connection.peer + " closed: ") + connection.close_reason);
+        LogLimited((connection.id == robot_id_ ? "robot connection closed: " : "connection from " +
+                    connection.peer + " closed: ") + connection.close_reason);
       }
       close(connection.fd);
       connections_.erase(connections_.begin() + static_cast<std::ptrdiff_t>(i));
@@ -443,13 +444,19 @@ class VisionServerLink final : public RobotLink {
       socklen_t length = sizeof address;
       const int fd = accept4(listen_fd_, reinterpret_cast<sockaddr*>(&address), &length,
                              SOCK_CLOEXEC | SOCK_NONBLOCK);
-      if (fd < 0) return;
+      if (fd < 0) {
+        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
+          accept_paused_until_ = Clock::now() + kAcceptBackoff;
+          LogLimited(Errno("cannot accept a connection"));
+        }
+        return;
+      }
       Connection connection;
       connection.fd = fd;
       connection.peer = PeerAddress(address);
       if (!MakeRoom(connection.peer)) {
         close(fd);
-        Log("connection from " + connection.peer + " refused: no free slot");
+        LogLimited("connection from " + connection.peer + " refused: no free slot");
         continue;
       }
       const int one = 1;
@@ -603,7 +610,31 @@ class VisionServerLink final : public RobotLink {
     return false;
   }
 
+  /// Lines about clients other than the robot: at most kMaxLogLinesPerSecond, the rest
+  /// counted - a flood of hostile connections must not flood the cell's log.
+  void LogLimited(const std::string& line) {
+    const auto now = Clock::now();
+    if (now - log_window_start_ >= std::chrono::seconds(1)) {
+      if (suppressed_logs_ > 0) {
+        Log(std::to_string(suppressed_logs_) + " more log lines suppressed");
+      }
+      log_window_start_ = now;
+      log_window_lines_ = 0;
+      suppressed_logs_ = 0;
+    }
+    if (log_window_lines_ < kMaxLogLinesPerSecond) {
+      ++log_window_lines_;
+      Log(line);
+    } else {
+      ++suppressed_logs_;
+    }
+  }
+
   static constexpr int kAcceptsPerPoll = 16;
+  static constexpr int kMaxLogLinesPerSecond = 20;
+  /// After accept fails for want of descriptors (EMFILE, ENFILE), the listening socket is not
+  /// watched for this long: the pending connection stays readable, and poll() would spin.
+  static constexpr std::chrono::milliseconds kAcceptBackoff{100};
   /// A new connection is safe from its own peer's newer connections for this long.
   static constexpr std::chrono::milliseconds kEvictionGrace{200};
 
@@ -613,6 +644,10 @@ class VisionServerLink final : public RobotLink {
   std::vector<Connection> connections_;
   int last_connection_id_ = 0;
   int robot_id_ = -1;          ///< connection that made the last valid request
+  Clock::time_point accept_paused_until_{};
+  Clock::time_point log_window_start_{};
+  int log_window_lines_ = 0;
+  std::size_t suppressed_logs_ = 0;
   Clock::time_point heard_{};  ///< when the robot last sent anything
   std::deque<PickCommand> pending_;   ///< admitted poses not yet sent (NEXT serves them)
   AckKind last_ack_ = AckKind::kPeerLost;

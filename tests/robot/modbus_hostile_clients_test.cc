@@ -5,7 +5,9 @@
 // its own case that checks how the server refused it. Everything on 127.0.0.1, every wait
 // bounded. The cell side runs the link in a thread, as `hnnstereo serve` does.
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <modbus/modbus.h>
+#include <sys/resource.h>
 
 #include <atomic>
 #include <chrono>
@@ -82,6 +84,8 @@ class CellThread {
   std::thread thread_;
 };
 
+void PlcCycles(modbus_t* plc, int cycles, std::uint16_t first_sequence);
+
 /// A PLC's run of `cycles` handshakes (docs/robot_modbus.md) on a fresh connection, polling
 /// every 2 ms. `seconds`: how long it took (connect included); failures are test failures.
 void RunPlcCycles(int port, int cycles, std::uint16_t first_sequence, double* seconds) {
@@ -92,6 +96,16 @@ void RunPlcCycles(int port, int cycles, std::uint16_t first_sequence, double* se
   modbus_set_response_timeout(plc, 10, 0);
   modbus_set_slave(plc, 1);
   EXPECT_EQ(modbus_connect(plc), 0) << modbus_strerror(errno);
+  PlcCycles(plc, cycles, first_sequence);
+  modbus_close(plc);
+  modbus_free(plc);
+  if (!::testing::Test::HasFatalFailure()) {
+    *seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  }
+}
+
+/// `cycles` handshakes on a connected PLC context.
+void PlcCycles(modbus_t* plc, int cycles, std::uint16_t first_sequence) {
   for (int c = 0; c < cycles; ++c) {
     const std::uint16_t sequence = static_cast<std::uint16_t>(first_sequence + c);
     ASSERT_EQ(modbus_write_register(plc, mb::kRequestSequenceRegister, sequence), 1)
@@ -123,9 +137,6 @@ void RunPlcCycles(int port, int cycles, std::uint16_t first_sequence, double* se
     ASSERT_EQ(modbus_write_register(plc, mb::kCommandRegister, mb::kCommandAcknowledge), 1)
         << modbus_strerror(errno);
   }
-  modbus_close(plc);
-  modbus_free(plc);
-  *seconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 double RunPlc(int port, int cycles, std::uint16_t first_sequence) {
@@ -382,6 +393,67 @@ TEST(ModbusServerHostileClients, RequestRateIsLimitedPerConnection) {
   EXPECT_GE(replies, 100) << "throttled, not refused";
   EXPECT_EQ(flood.exception_codes[6], 0);
   EXPECT_EQ(flood.closed_by_server, 0);
+}
+
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+int OpenDescriptors() {
+  int count = 0;
+  for (int fd = 0; fd < 4096; ++fd) count += fcntl(fd, F_GETFD) != -1;
+  return count;
+}
+
+// Out of file descriptors, accept() fails and the pending connection keeps the listening
+// socket readable: without a pause the server thread would spin on poll(). The connected PLC
+// goes on meanwhile, and the waiting clients are taken once descriptors are free again.
+TEST(ModbusServerHostileClients, OutOfDescriptorsTheServerNeitherSpinsNorStopsThePlc) {
+  auto link = OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true),
+                       QuietOptions());
+  CellThread cell(*link);
+  const int port = std::stoi(link->Describe().substr(link->Describe().rfind(':') + 1));
+  modbus_t* plc = modbus_new_tcp("127.0.0.1", port);
+  modbus_set_response_timeout(plc, 10, 0);
+  ASSERT_EQ(modbus_connect(plc), 0);
+  PlcCycles(plc, 2, 4000);
+  // Client sockets made now, connected once the limit leaves the server no descriptor.
+  std::vector<int> clients;
+  for (int i = 0; i < 5; ++i) clients.push_back(socket(AF_INET, SOCK_STREAM, 0));
+  rlimit saved{};
+  getrlimit(RLIMIT_NOFILE, &saved);
+  rlimit tight = saved;
+  tight.rlim_cur = static_cast<rlim_t>(OpenDescriptors());
+  ASSERT_EQ(setrlimit(RLIMIT_NOFILE, &tight), 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  for (const int fd : clients) {
+    EXPECT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  }
+  const double cpu_before = CpuSeconds();
+  std::this_thread::sleep_for(milliseconds(1000));
+  const double cpu_spent = CpuSeconds() - cpu_before;
+  PlcCycles(plc, 3, 4100);  // the connected PLC is served all the while
+  setrlimit(RLIMIT_NOFILE, &saved);
+  std::printf("[ figures  ] out of descriptors for 1 s: %.3f s of CPU\n", cpu_spent);
+  EXPECT_LT(cpu_spent, 0.3) << "the server thread spun on the listening socket";
+  // Descriptors back: the waiting clients are accepted (a request of theirs is answered).
+  const std::string request = Frame(kReadTwo);
+  HostileCounters counters;
+  for (const int fd : clients) {
+    timeval timeout{2, 0};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    EXPECT_TRUE(SendBytes(fd, request));
+    EXPECT_TRUE(ReadReply(fd, counters));
+    close(fd);
+  }
+  modbus_close(plc);
+  modbus_free(plc);
 }
 
 }  // namespace
