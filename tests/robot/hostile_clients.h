@@ -55,12 +55,12 @@ inline int ConnectTcp(int port, int timeout_ms = 200, const char* source = nullp
 
 /// What the server did to one hostile client (all threads of one kind add up here).
 struct HostileCounters {
-  std::atomic<int> connections{0};     ///< connects that succeeded
-  std::atomic<int> closed_by_server{0};///< EOF or reset seen while the client still wanted more
-  std::atomic<int> replies{0};         ///< complete replies read
+  std::atomic<int> connections{0};       ///< connects that succeeded
+  std::atomic<int> closed_by_server{0};  ///< EOF or reset seen while the client still wanted more
+  std::atomic<int> replies{0};           ///< complete replies read
   std::atomic<int> exception_codes[16] = {};  ///< Modbus exception replies, by code
-  std::atomic<int> status_minus_4{0};  ///< vision-server: "(-4,...)" replies
-  std::atomic<int> send_stalls{0};     ///< sends that timed out: the server stopped reading
+  std::atomic<int> status_minus_4{0};         ///< vision-server: "(-4,...)" replies
+  std::atomic<int> send_stalls{0};            ///< sends that timed out: the server stopped reading
 };
 
 /// One misbehaviour: called with a connected socket; returns when the server closed it (after
@@ -170,8 +170,8 @@ inline Behaviour ByteAtATime(std::string bytes, std::chrono::milliseconds gap) {
 
 /// 1..300 random bytes, then hangs up (a port scanner, a wrong protocol).
 inline void GarbageAndHangUp(int fd, const std::atomic<bool>&, HostileCounters&) {
-  thread_local std::mt19937 random(12345u + static_cast<unsigned>(
-                                                  std::hash<std::thread::id>()(std::this_thread::get_id())));
+  thread_local std::mt19937 random(
+      12345u + static_cast<unsigned>(std::hash<std::thread::id>()(std::this_thread::get_id())));
   std::string bytes(1 + random() % 300, '\0');
   for (char& c : bytes) c = static_cast<char>(random());
   SendBytes(fd, bytes);

@@ -4,8 +4,8 @@
 // the right poses within twice its time alone plus 1 s. Each kind of misbehaviour also gets
 // its own case that checks how the server refused it. Everything on 127.0.0.1, every wait
 // bounded. The cell side runs the link in a thread, as `hnnstereo serve` does.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <modbus/modbus.h>
 #include <sys/resource.h>
 
@@ -63,17 +63,18 @@ std::vector<PickCommand> ExpectedPicks(std::uint32_t sequence) {
 /// The cell side: waits for triggers, publishes ExpectedPicks, waits for the acknowledge.
 class CellThread {
  public:
-  explicit CellThread(RobotLink& link) : thread_([this, &link] {
-    while (!stop_) {
-      const Trigger trigger = link.WaitForTrigger(milliseconds(50));
-      if (trigger.kind != TriggerKind::kTrigger) continue;
-      CycleResult cycle;
-      cycle.request_sequence = trigger.request_sequence;
-      cycle.picks = ExpectedPicks(trigger.request_sequence);
-      link.Publish(cycle);
-      link.WaitForAcknowledge(milliseconds(3000));
-    }
-  }) {}
+  explicit CellThread(RobotLink& link)
+      : thread_([this, &link] {
+          while (!stop_) {
+            const Trigger trigger = link.WaitForTrigger(milliseconds(50));
+            if (trigger.kind != TriggerKind::kTrigger) continue;
+            CycleResult cycle;
+            cycle.request_sequence = trigger.request_sequence;
+            cycle.picks = ExpectedPicks(trigger.request_sequence);
+            link.Publish(cycle);
+            link.WaitForAcknowledge(milliseconds(3000));
+          }
+        }) {}
   ~CellThread() {
     stop_ = true;
     thread_.join();
@@ -152,8 +153,9 @@ std::string Frame(const std::vector<std::uint8_t>& pdu, std::uint16_t transactio
                   std::uint16_t length_field = 0) {
   const std::uint16_t length =
       length_field != 0 ? length_field : static_cast<std::uint16_t>(pdu.size() + 1);
-  std::string frame = {static_cast<char>(transaction >> 8), static_cast<char>(transaction & 0xFF),
-                       0, 0, static_cast<char>(length >> 8), static_cast<char>(length & 0xFF), 1};
+  std::string frame = {
+      static_cast<char>(transaction >> 8), static_cast<char>(transaction & 0xFF), 0, 0,
+      static_cast<char>(length >> 8),      static_cast<char>(length & 0xFF),      1};
   for (const std::uint8_t byte : pdu) frame += static_cast<char>(byte);
   return frame;
 }
@@ -161,8 +163,8 @@ std::string Frame(const std::vector<std::uint8_t>& pdu, std::uint16_t transactio
 const std::vector<std::uint8_t> kReadTwo = {0x03, 0x00, 0x0A, 0x00, 0x02};
 const std::vector<std::uint8_t> kBadFunction = {0x5A, 0x00, 0x00, 0x00, 0x01};
 const std::vector<std::uint8_t> kOversizedRead = {0x03, 0x00, 0x00, 0x07, 0xD0};  // 2000 words
-const std::vector<std::uint8_t> kOutOfMapWrite = {0x10, 0xEA, 0x60, 0x00, 0x02, 0x04,
-                                                  0x00, 0x01, 0x00, 0x01};  // at 60000
+const std::vector<std::uint8_t> kOutOfMapWrite = {0x10, 0xEA, 0x60, 0x00, 0x02,
+                                                  0x04, 0x00, 0x01, 0x00, 0x01};  // at 60000
 
 /// Reads one reply frame; false when the server closed the connection (or said nothing).
 bool ReadReply(int fd, HostileCounters& counters) {
@@ -253,8 +255,8 @@ void ExpectWithinBound(const Timings& timings, int cycles) {
 }
 
 TEST(ModbusServerHostileClients, APlcsThirtyCyclesWithinTwiceTheirTimeAlonePlusOneSecond) {
-  auto link = OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true),
-                       QuietOptions());
+  auto link =
+      OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), QuietOptions());
   CellThread cell(*link);
   HostileCrowd crowd;
   HostileCounters* counters[10] = {};
@@ -279,9 +281,10 @@ TEST(ModbusServerHostileClients, APlcsThirtyCyclesWithinTwiceTheirTimeAlonePlusO
   }();
   crowd.Stop();
   for (int k = 0; k < 10; ++k) {
-    std::printf("[ figures  ] hostile kind %d: %d connections, %d closed by the server, %d replies\n",
-                k, counters[k]->connections.load(), counters[k]->closed_by_server.load(),
-                counters[k]->replies.load());
+    std::printf(
+        "[ figures  ] hostile kind %d: %d connections, %d closed by the server, %d replies\n", k,
+        counters[k]->connections.load(), counters[k]->closed_by_server.load(),
+        counters[k]->replies.load());
   }
   ExpectWithinBound(timings, 30);
   std::printf("[ figures  ] hostile connections made during the run: %d\n", hostile_connections);
@@ -297,7 +300,7 @@ TEST(ModbusServerHostileClients, APlcsThirtyCyclesWithinTwiceTheirTimeAlonePlusO
 
 LinkOptions FastTimeoutOptions() {
   LinkOptions options = QuietOptions();
-  options.io_timeout = milliseconds(500);                   // partial frames
+  options.io_timeout = milliseconds(500);                    // partial frames
   options.server.first_request_timeout = milliseconds(800);  // silent connections
   return options;
 }
@@ -412,8 +415,8 @@ int OpenDescriptors() {
 // socket readable: without a pause the server thread would spin on poll(). The connected PLC
 // goes on meanwhile, and the waiting clients are taken once descriptors are free again.
 TEST(ModbusServerHostileClients, OutOfDescriptorsTheServerNeitherSpinsNorStopsThePlc) {
-  auto link = OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true),
-                       QuietOptions());
+  auto link =
+      OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), QuietOptions());
   CellThread cell(*link);
   const int port = std::stoi(link->Describe().substr(link->Describe().rfind(':') + 1));
   modbus_t* plc = modbus_new_tcp("127.0.0.1", port);

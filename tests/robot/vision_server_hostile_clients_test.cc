@@ -41,17 +41,18 @@ PickCommand ExpectedPick(std::uint32_t sequence) {
 /// The cell side, in its own thread as in `hnnstereo serve`.
 class CellThread {
  public:
-  explicit CellThread(RobotLink& link) : thread_([this, &link] {
-    while (!stop_) {
-      const Trigger trigger = link.WaitForTrigger(milliseconds(50));
-      if (trigger.kind != TriggerKind::kTrigger) continue;
-      CycleResult cycle;
-      cycle.request_sequence = trigger.request_sequence;
-      cycle.picks = {ExpectedPick(trigger.request_sequence)};
-      link.Publish(cycle);
-      link.WaitForAcknowledge(milliseconds(1000));
-    }
-  }) {}
+  explicit CellThread(RobotLink& link)
+      : thread_([this, &link] {
+          while (!stop_) {
+            const Trigger trigger = link.WaitForTrigger(milliseconds(50));
+            if (trigger.kind != TriggerKind::kTrigger) continue;
+            CycleResult cycle;
+            cycle.request_sequence = trigger.request_sequence;
+            cycle.picks = {ExpectedPick(trigger.request_sequence)};
+            link.Publish(cycle);
+            link.WaitForAcknowledge(milliseconds(1000));
+          }
+        }) {}
   ~CellThread() {
     stop_ = true;
     thread_.join();
