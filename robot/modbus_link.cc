@@ -308,7 +308,9 @@ class ModbusServerLink final : public RobotLink {
       }
       const int yes = 1;
       setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, 64) != 0) {
+      // A deep backlog: when clients connect and hang up by the thousand, a full accept queue
+      // drops the PLC's SYN and its connect waits for the retransmission (1 s, then 3 s).
+      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, SOMAXCONN) != 0) {
         last_error = std::strerror(errno);
         close(fd);
         continue;
@@ -914,7 +916,7 @@ class ModbusServerLink final : public RobotLink {
   /// Bytes read ahead per connection: two of the largest frames (260 bytes each).
   static constexpr std::size_t kReadAheadBytes = 2 * MODBUS_TCP_MAX_ADU_LENGTH;
   static constexpr int kFramesPerRound = 4;    ///< per connection, per poll round
-  static constexpr int kAcceptsPerRound = 16;  ///< new connections taken per poll round
+  static constexpr int kAcceptsPerRound = 64;  ///< new connections taken per poll round
   /// A connection at a limit gives way to a new one only after this long without a valid
   /// request (ServerLimits::max_connections).
   static constexpr milliseconds kEvictAfterQuiet{1000};

@@ -95,7 +95,9 @@ class VisionServerLink final : public RobotLink {
       if (fd < 0) continue;
       const int one = 1;
       setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-      if (bind(fd, a->ai_addr, a->ai_addrlen) == 0 && listen(fd, 64) == 0) {
+      // A deep backlog: when clients connect and hang up by the thousand, a full accept queue
+      // drops the robot's SYN and its connect waits for the retransmission (1 s, then 3 s).
+      if (bind(fd, a->ai_addr, a->ai_addrlen) == 0 && listen(fd, SOMAXCONN) == 0) {
         listen_fd_ = fd;
       } else {
         last_error = std::strerror(errno);
@@ -630,7 +632,7 @@ class VisionServerLink final : public RobotLink {
     }
   }
 
-  static constexpr int kAcceptsPerPoll = 16;
+  static constexpr int kAcceptsPerPoll = 64;
   static constexpr int kMaxLogLinesPerSecond = 20;
   /// After accept fails for want of descriptors (EMFILE, ENFILE), the listening socket is not
   /// watched for this long: the pending connection stays readable, and poll() would spin.
