@@ -916,7 +916,7 @@ class ModbusServerLink final : public RobotLink {
   /// Bytes read ahead per connection: two of the largest frames (260 bytes each).
   static constexpr std::size_t kReadAheadBytes = 2 * MODBUS_TCP_MAX_ADU_LENGTH;
   static constexpr int kFramesPerRound = 4;    ///< per connection, per poll round
-  static constexpr int kAcceptsPerRound = 64;  ///< new connections taken per poll round
+  static constexpr int kAcceptsPerRound = 16;  ///< new connections taken per poll round
   /// A connection at a limit gives way to a new one only after this long without a valid
   /// request (ServerLimits::max_connections).
   static constexpr milliseconds kEvictAfterQuiet{1000};
