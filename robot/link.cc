@@ -89,6 +89,19 @@ std::string LinkOptions::Check() const {
     return "reconnect backoff must satisfy 0 < min <= max";
   }
   if (max_poses < 1 || max_poses > 64) return "max_poses must be in 1..64";
+  return server.Check();
+}
+
+std::string ServerLimits::Check() const {
+  if (max_connections < 1) return "server max_connections must be at least 1";
+  if (max_connections_per_peer < 1 || max_connections_per_peer > max_connections) {
+    return "server max_connections_per_peer must be in 1..max_connections";
+  }
+  if (first_request_timeout.count() <= 0) return "server first_request_timeout must be positive";
+  if (max_requests_per_second < 1 || request_burst < 1) {
+    return "server max_requests_per_second and request_burst must be at least 1";
+  }
+  if (max_line_bytes < 16) return "server max_line_bytes must be >= 16";
   return {};
 }
 

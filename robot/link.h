@@ -46,6 +46,36 @@ enum LinkErrorCode : int {
   kErrorMalformedRequest = -4, ///< the peer sent something the protocol does not know
 };
 
+/// Limits of the listening transports (modbus-server, vision-server): whatever one client
+/// sends, or does not send, no other client and no cycle waits for it. Each connection has its
+/// own buffers and timers; the server never blocks on one socket. The defaults fit one PLC or
+/// robot plus a few HMIs and monitors (docs/robot.md, "Hostile clients").
+struct ServerLimits {
+  /// Client connections open at once. At the limit a new connection takes the place of the
+  /// quietest connection of a peer holding more connections than its own (never made a valid
+  /// request, or none for a second); if there is none, the new connection is closed at once.
+  /// So a flood from a few addresses cannot lock a PLC out, and an active PLC is never pushed
+  /// out. A client that does not read its replies is not read from either (TCP flow control
+  /// slows it) and is closed when a reply waits longer than io_timeout.
+  int max_connections = 32;
+  /// The same, counted per peer address: at the limit the peer's own quietest connection
+  /// (silent for 200 ms at least) gives way, or the new one is closed.
+  int max_connections_per_peer = 8;
+  /// A connection must make its first valid request within this, or it is closed: a client
+  /// that connects and never speaks (or only speaks garbage) holds a slot for no longer.
+  std::chrono::milliseconds first_request_timeout{10000};
+  /// Requests per second one connection is served, sustained (token bucket). Requests beyond
+  /// wait: the server reads nothing more from that connection until the rate allows, so TCP
+  /// flow control slows the sender and no one else (a PLC is slowed, never refused).
+  int max_requests_per_second = 2000;
+  /// Requests one connection may make at once above the sustained rate.
+  int request_burst = 500;
+  /// vision-server: longest request line (bytes without the newline); longer closes the
+  /// connection after a status -4 reply.
+  std::size_t max_line_bytes = 256;
+  std::string Check() const;
+};
+
 /// Options shared by every transport. Times are wall-clock.
 struct LinkOptions {
   std::chrono::milliseconds io_timeout{2000};   ///< one request/response on the wire
@@ -53,6 +83,9 @@ struct LinkOptions {
   std::chrono::milliseconds reconnect_backoff_min{100};   ///< first retry after a lost peer
   std::chrono::milliseconds reconnect_backoff_max{5000};  ///< doubling stops here
   int max_poses = 16;                           ///< per cycle (Modbus: registers 20 + 8 * 16)
+  /// Listening transports only. A request whose first byte has arrived must be complete
+  /// within io_timeout, or the partial request is discarded (see each transport).
+  ServerLimits server;
   /// Where the link logs refusals, reconnects and malformed requests (one line each). Called
   /// only on the thread that calls the link (transports with threads queue their lines).
   std::function<void(const std::string&)> log;

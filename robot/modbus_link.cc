@@ -1,10 +1,14 @@
 // Modbus TCP transports of the robot link (issue 5; docs/robot_modbus.md), on libmodbus 3.1.6.
 //
 // modbus-server://HOST:PORT[?unit=N&connection=persistent|per-request]  the vision side is a Modbus TCP server the PLC polls.
-//   A background thread serves every connected client (select() over the listening socket and
-//   all clients, as libmodbus's tests/bandwidth-server-many-up.c does), the register mapping
-//   guarded by one mutex. Writes to the command register become events in a queue, so a fast
-//   PLC that writes "acknowledge" and then "trigger" loses neither.
+//   A background thread serves every connected client: one poll() over the listening socket
+//   and all clients, non-blocking reads into a buffer per connection, MBAP frames cut and
+//   answered here (not by libmodbus's modbus_receive/modbus_reply, which block on one socket
+//   until its frame is complete, and sleep before answering an unknown function code - one
+//   slow or hostile client then stalled every other, issue 15). Limits per connection and in
+//   all: LinkOptions::server (ServerLimits, robot/link.h). The register mapping is guarded by
+//   one mutex. Writes to the command register become events in a queue, so a fast PLC that
+//   writes "acknowledge" and then "trigger" loses neither.
 // modbus-client://HOST:PORT[?unit=N&poll_ms=M]  the vision side writes into the controller's
 //   registers (same map, roles swapped), polling the controller's command register.
 //
@@ -15,7 +19,7 @@
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
-#include <sys/select.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -26,6 +30,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -129,18 +134,11 @@ class ModbusServerLink final : public RobotLink {
       close(listen_fd_);
       throw std::runtime_error("modbus-server: pipe: " + std::string(std::strerror(errno)));
     }
-    // The context only frames requests and replies on sockets this class accepts; it never
-    // connects anywhere itself.
-    context_ = modbus_new_tcp("127.0.0.1", MODBUS_TCP_DEFAULT_PORT);
     mapping_ = modbus_mapping_new(0, 0, register_count_, 0);
-    if (context_ == nullptr || mapping_ == nullptr) {
+    if (mapping_ == nullptr) {
       CloseAll();
-      throw std::runtime_error("modbus-server: cannot allocate the libmodbus context/mapping");
+      throw std::runtime_error("modbus-server: cannot allocate the register mapping");
     }
-    // A request whose first byte has arrived must be complete within io_timeout.
-    const auto io = this->options().io_timeout.count();
-    modbus_set_byte_timeout(context_, static_cast<std::uint32_t>(io / 1000),
-                            static_cast<std::uint32_t>((io % 1000) * 1000));
     thread_ = std::thread([this] { Serve(); });
   }
 
@@ -269,9 +267,23 @@ class ModbusServerLink final : public RobotLink {
   }
 
  private:
+  /// One client connection. Each has its own buffers and timers and the server thread never
+  /// blocks on its socket, so nothing one client sends, or fails to send, holds up another
+  /// (issue 15: a half-sent frame used to stall every client for the byte timeout).
   struct Connection {
     int fd = -1;
     int id = 0;
+    std::string peer;                  ///< peer address, for the per-peer limit and the log
+    std::vector<std::uint8_t> input;   ///< received bytes, not yet a whole frame
+    std::string output;                ///< reply bytes the client has not taken yet
+    Clock::time_point accepted;
+    Clock::time_point frame_started;   ///< when the first byte now in `input` arrived
+    std::optional<Clock::time_point> last_valid;  ///< last request answered without exception
+    double tokens = 0.0;               ///< request budget (token bucket, ServerLimits)
+    Clock::time_point tokens_at;       ///< when `tokens` was last refilled
+    Clock::time_point output_since;    ///< when `output` last became non-empty or shrank
+    std::string close_reason;          ///< non-empty: close at the end of this round
+    bool log_close = true;             ///< false for an ordinary hang-up
   };
 
   void OpenListeningSocket(const LinkUri& uri) {
@@ -288,7 +300,7 @@ class ModbusServerLink final : public RobotLink {
     }
     std::string last_error = "no address";
     for (addrinfo* address = found; address != nullptr; address = address->ai_next) {
-      const int fd = socket(address->ai_family, address->ai_socktype | SOCK_CLOEXEC,
+      const int fd = socket(address->ai_family, address->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK,
                             address->ai_protocol);
       if (fd < 0) {
         last_error = std::strerror(errno);
@@ -296,7 +308,9 @@ class ModbusServerLink final : public RobotLink {
       }
       const int yes = 1;
       setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, 16) != 0) {
+      // A deep backlog: when clients connect and hang up by the thousand, a full accept queue
+      // drops the PLC's SYN and its connect waits for the retransmission (1 s, then 3 s).
+      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, SOMAXCONN) != 0) {
         last_error = std::strerror(errno);
         close(fd);
         continue;
@@ -326,38 +340,42 @@ class ModbusServerLink final : public RobotLink {
       if (fd >= 0) close(fd);
       fd = -1;
     }
-    if (context_ != nullptr) {
-      modbus_set_socket(context_, -1);
-      modbus_free(context_);
-      context_ = nullptr;
-    }
     if (mapping_ != nullptr) modbus_mapping_free(mapping_);
     mapping_ = nullptr;
   }
 
-  // The server thread: accepts clients, answers requests, counts the heartbeat.
+  const ServerLimits& limits() const { return options().server; }
+
+  // The server thread: accepts clients, reads their bytes without blocking, answers whole
+  // frames, enforces the limits, counts the heartbeat. One poll() per round over every socket.
   void Serve() {
-    std::uint8_t request[MODBUS_TCP_MAX_ADU_LENGTH];
     const milliseconds period = options().heartbeat_period;
     auto next_heartbeat = Clock::now() + period;
+    std::vector<pollfd> fds;
     while (!stopping_) {
-      fd_set readable;
-      FD_ZERO(&readable);
-      FD_SET(listen_fd_, &readable);
-      FD_SET(wake_pipe_[0], &readable);
-      int highest = std::max(listen_fd_, wake_pipe_[0]);
+      fds.clear();
+      const bool accepting = Clock::now() >= accept_paused_until_;
+      fds.push_back({listen_fd_, static_cast<short>(accepting ? POLLIN : 0), 0});
+      fds.push_back({wake_pipe_[0], POLLIN, 0});
+      auto wake = accepting ? next_heartbeat : std::min(next_heartbeat, accept_paused_until_);
       for (const Connection& connection : connections_) {
-        FD_SET(connection.fd, &readable);
-        highest = std::max(highest, connection.fd);
+        short events = 0;
+        // Back-pressure: a client with unanswered frames buffered or replies piling up is not
+        // read from until they are gone; TCP flow control then slows it down, nobody else.
+        if (connection.input.size() < kReadAheadBytes &&
+            connection.output.size() < kReadAheadBytes) {
+          events |= POLLIN;
+        }
+        if (!connection.output.empty()) events |= POLLOUT;
+        fds.push_back({connection.fd, events, 0});
+        wake = std::min(wake, NextDeadline(connection));
       }
-      const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(
-          std::max(next_heartbeat - Clock::now(), Clock::duration::zero()));
-      timeval timeout{static_cast<time_t>(wait.count() / 1000000),
-                      static_cast<suseconds_t>(wait.count() % 1000000)};
-      const int ready = select(highest + 1, &readable, nullptr, nullptr, &timeout);
+      const auto wait = std::chrono::duration_cast<milliseconds>(wake - Clock::now()).count();
+      const int ready = poll(fds.data(), fds.size(),
+                             static_cast<int>(std::clamp<long long>(wait + 1, 0, 1000)));
       if (ready < 0 && errno != EINTR) {
         std::lock_guard lock(mutex_);
-        DeferLogLocked("modbus-server: select failed: " + std::string(std::strerror(errno)));
+        DeferLogLocked("modbus-server: poll failed: " + std::string(std::strerror(errno)));
         std::this_thread::sleep_for(milliseconds(10));
         continue;
       }
@@ -368,44 +386,270 @@ class ModbusServerLink final : public RobotLink {
         next_heartbeat += period;
         if (next_heartbeat < Clock::now()) next_heartbeat = Clock::now() + period;
       }
-      if (ready <= 0 || stopping_) continue;
-      for (std::size_t i = 0; i < connections_.size();) {
-        const Connection connection = connections_[i];
-        if (!FD_ISSET(connection.fd, &readable)) {
-          ++i;
-          continue;
+      if (stopping_) break;
+      if (ready > 0) {
+        if (fds[1].revents & POLLIN) {
+          char drain[64];
+          if (read(wake_pipe_[0], drain, sizeof drain) < 0) {
+            // Nothing to do: the pipe only wakes this loop.
+          }
         }
-        modbus_set_socket(context_, connection.fd);
-        const int length = modbus_receive(context_, request);
-        if (length > 0) {
-          Answer(request, length, connection.id);
-          ++i;
-        } else if (length < 0) {
-          Disconnected(connection);
-          connections_.erase(connections_.begin() + static_cast<std::ptrdiff_t>(i));
-        } else {
-          ++i;  // a request libmodbus ignored (not for this server)
+        for (std::size_t i = 0; i < connections_.size(); ++i) {
+          const short revents = fds[i + 2].revents;
+          if (revents & POLLOUT) Flush(connections_[i]);
+          if (revents & (POLLIN | POLLHUP | POLLERR)) Receive(connections_[i]);
         }
       }
+      // A few frames per connection per round: a client that floods requests waits its turn
+      // behind everyone else instead of owning the loop.
+      for (Connection& connection : connections_) ProcessFrames(connection);
+      for (Connection& connection : connections_) {
+        if (!connection.output.empty()) Flush(connection);
+      }
+      ExpireTimeouts(Clock::now());
+      CloseMarked();
       // After the reads, so a PLC's old connection closing and its new one arriving in the same
       // round are seen in that order (the reconnect rule needs the old one gone).
-      if (FD_ISSET(listen_fd_, &readable)) Accept();
+      if (ready > 0 && (fds[0].revents & POLLIN)) AcceptPending();
     }
   }
 
-  void Accept() {
-    const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-    if (fd < 0) return;
-    if (fd >= FD_SETSIZE) {  // select() cannot watch it
-      close(fd);
-      std::lock_guard lock(mutex_);
-      DeferLogLocked("modbus-server: too many connections; refused one");
-      return;
+  /// When the server must look at this connection again even if it sends nothing.
+  Clock::time_point NextDeadline(const Connection& connection) const {
+    if (HasWholeFrame(connection)) return TokenAvailable(connection);
+    auto deadline = Clock::time_point::max();
+    if (!connection.input.empty()) {
+      deadline = std::min(deadline, connection.frame_started + options().io_timeout);
     }
-    const int yes = 1;
-    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof(yes));
-    const int id = ++last_connection_id_;
-    connections_.push_back({fd, id});
+    if (!connection.last_valid) {
+      deadline = std::min(deadline, connection.accepted + limits().first_request_timeout);
+    }
+    if (!connection.output.empty()) {
+      deadline = std::min(deadline, connection.output_since + options().io_timeout);
+    }
+    return deadline;
+  }
+
+  static bool HasWholeFrame(const Connection& connection) {
+    if (connection.input.size() < kMbapHeaderBytes) return false;
+    return connection.input.size() >= 6u + Word(connection.input.data() + 4);
+  }
+
+  /// Marks `connection` for closing at the end of the round (the first reason counts).
+  static void Mark(Connection& connection, std::string reason, bool log = true) {
+    if (!connection.close_reason.empty()) return;
+    connection.close_reason = std::move(reason);
+    connection.log_close = log;
+  }
+
+  void Receive(Connection& connection) {
+    if (!connection.close_reason.empty() || connection.input.size() >= kReadAheadBytes) return;
+    std::uint8_t buffer[kReadAheadBytes];
+    const ssize_t n = recv(connection.fd, buffer, kReadAheadBytes - connection.input.size(),
+                           MSG_DONTWAIT);
+    if (n > 0) {
+      if (connection.input.empty()) connection.frame_started = Clock::now();
+      connection.input.insert(connection.input.end(), buffer, buffer + n);
+    } else if (n == 0) {
+      Mark(connection, "closed by the client", false);
+    } else if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+      Mark(connection, std::strerror(errno), errno != ECONNRESET);
+    }
+  }
+
+  void Flush(Connection& connection) {
+    while (!connection.output.empty() && connection.close_reason.empty()) {
+      const ssize_t n = send(connection.fd, connection.output.data(), connection.output.size(),
+                             MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        connection.output.erase(0, static_cast<std::size_t>(n));
+        connection.output_since = Clock::now();  // progress: the client reads
+      } else if (n < 0 && errno == EINTR) {
+        continue;
+      } else {
+        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
+          Mark(connection, std::strerror(errno), errno != EPIPE && errno != ECONNRESET);
+        }
+        return;
+      }
+    }
+  }
+
+  void ProcessFrames(Connection& connection) {
+    for (int n = 0; n < kFramesPerRound && connection.close_reason.empty(); ++n) {
+      if (connection.input.size() < kMbapHeaderBytes) return;
+      const std::uint8_t* header = connection.input.data();
+      const int protocol = Word(header + 2);
+      const int length = Word(header + 4);
+      // Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3: the protocol identifier of
+      // Modbus is 0, and the length counts the unit id and the PDU - at least 2 bytes (unit id
+      // and function code) and at most 254 (a PDU is at most 253 bytes, Application Protocol
+      // V1.1b3, 4.1). Anything else is not a Modbus TCP peer, or a stream that lost its frame
+      // boundary and cannot regain it: drop the connection rather than wait for 65535 bytes.
+      if (protocol != 0 || length < kMinMbapLength || length > kMaxMbapLength) {
+        Mark(connection, "malformed MBAP header (protocol id " + std::to_string(protocol) +
+                             ", length " + std::to_string(length) + ")");
+        return;
+      }
+      const std::size_t frame_bytes = 6u + static_cast<std::size_t>(length);
+      if (connection.input.size() < frame_bytes) return;
+      // Over its request rate: the frame waits in the buffer (NextDeadline wakes the loop when
+      // a token is due) and, the buffer being full, nothing more is read from this client.
+      if (!TakeToken(connection)) return;
+      Answer(connection, connection.input.data(), frame_bytes);
+      connection.input.erase(connection.input.begin(),
+                             connection.input.begin() + static_cast<std::ptrdiff_t>(frame_bytes));
+      if (!connection.input.empty()) connection.frame_started = Clock::now();
+    }
+  }
+
+  void ExpireTimeouts(Clock::time_point now) {
+    for (Connection& connection : connections_) {
+      // A whole frame waiting for its turn (request rate) is not an incomplete one.
+      if (!connection.input.empty() && !HasWholeFrame(connection) &&
+          now - connection.frame_started > options().io_timeout) {
+        Mark(connection, "request incomplete after " +
+                             std::to_string(options().io_timeout.count()) + " ms");
+      } else if (!connection.output.empty() &&
+                 now - connection.output_since > options().io_timeout) {
+        Mark(connection, "replies not read for " + std::to_string(options().io_timeout.count()) +
+                             " ms");
+      } else if (!connection.last_valid &&
+                 now - connection.accepted > limits().first_request_timeout) {
+        Mark(connection, "no valid request within " +
+                             std::to_string(limits().first_request_timeout.count()) +
+                             " ms of connecting");
+      }
+    }
+  }
+
+  void CloseMarked() {
+    for (std::size_t i = 0; i < connections_.size();) {
+      if (connections_[i].close_reason.empty()) {
+        ++i;
+      } else {
+        CloseConnection(i);
+      }
+    }
+  }
+
+  void CloseConnection(std::size_t index) {
+    const Connection connection = std::move(connections_[index]);
+    connections_.erase(connections_.begin() + static_cast<std::ptrdiff_t>(index));
+    close(connection.fd);
+    std::lock_guard lock(mutex_);
+    if (connection.log_close) {
+      DeferLogLocked("modbus-server: connection " + std::to_string(connection.id) + " from " +
+                     connection.peer + " closed: " + connection.close_reason);
+    }
+    live_connections_.erase(connection.id);
+    if (connection.id == trigger_owner_) owner_lost_ = true;
+    changed_.notify_all();
+  }
+
+  static std::string PeerAddress(const sockaddr_storage& address) {
+    char text[INET6_ADDRSTRLEN] = "?";
+    if (address.ss_family == AF_INET) {
+      inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in&>(address).sin_addr, text,
+                sizeof text);
+    } else if (address.ss_family == AF_INET6) {
+      inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6&>(address).sin6_addr, text,
+                sizeof text);
+    }
+    return text;
+  }
+
+  /// Frees a slot for a new connection from `peer` when a limit is reached. False: no room,
+  /// the new connection is refused. The rules (ServerLimits): at the per-peer limit, the peer's
+  /// own quietest connection gives way if it is evictable; at the overall limit, the quietest
+  /// evictable connection of a peer holding at least two more connections than `peer` gives
+  /// way (so floods from a few addresses cannot lock out another host), else the peer's own.
+  bool MakeRoom(const std::string& peer) {
+    const auto now = Clock::now();
+    std::map<std::string, int> per_peer;
+    for (const Connection& c : connections_) ++per_peer[c.peer];
+    const int own = per_peer[peer];
+    // Quietest first: never valid (oldest accepted first), then the oldest last valid request.
+    auto quiet_since = [](const Connection& c) {
+      return c.last_valid ? *c.last_valid : c.accepted - std::chrono::hours(24 * 365);
+    };
+    // An active client (a valid request within kEvictAfterQuiet) never gives way. A brand-new
+    // one gives way to its own peer's newer connections only after kEvictionGrace, so that a
+    // burst of connections accepted in one round cannot push out one whose first request is
+    // already on its way.
+    auto evictable = [&](const Connection& c, bool same_peer) {
+      if (c.last_valid) return now - *c.last_valid >= kEvictAfterQuiet;
+      return !same_peer || now - c.accepted >= kEvictionGrace;
+    };
+    auto evict_quietest = [&](auto&& eligible, const std::string& why) {
+      std::optional<std::size_t> victim;
+      for (std::size_t i = 0; i < connections_.size(); ++i) {
+        if (!eligible(connections_[i])) continue;
+        if (!victim || quiet_since(connections_[i]) < quiet_since(connections_[*victim])) {
+          victim = i;
+        }
+      }
+      if (!victim) return false;
+      Mark(connections_[*victim], "closed to make room for a new connection (" + why + ")");
+      CloseConnection(*victim);
+      return true;
+    };
+    auto own_quietest = [&](const Connection& c) {
+      return c.peer == peer && evictable(c, true);
+    };
+    if (own >= limits().max_connections_per_peer) {
+      return evict_quietest(own_quietest, "per-peer limit " +
+                                              std::to_string(limits().max_connections_per_peer) +
+                                              " from " + peer);
+    }
+    if (static_cast<int>(connections_.size()) >= limits().max_connections) {
+      const std::string why = "limit " + std::to_string(limits().max_connections);
+      auto heavier = [&](const Connection& c) {
+        return per_peer[c.peer] >= own + 2 && evictable(c, false);
+      };
+      return evict_quietest(heavier, why) || evict_quietest(own_quietest, why);
+    }
+    return true;
+  }
+
+  void AcceptPending() {
+    for (int n = 0; n < kAcceptsPerRound; ++n) {
+      sockaddr_storage address{};
+      socklen_t length = sizeof address;
+      const int fd = accept4(listen_fd_, reinterpret_cast<sockaddr*>(&address), &length,
+                             SOCK_CLOEXEC | SOCK_NONBLOCK);
+      if (fd < 0) {
+        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
+          accept_paused_until_ = Clock::now() + kAcceptBackoff;
+          std::lock_guard lock(mutex_);
+          DeferLogLocked("modbus-server: cannot accept a connection: " +
+                         std::string(std::strerror(errno)));
+        }
+        return;  // none left (the listening socket is non-blocking), or no descriptors
+      }
+      Connection connection;
+      connection.fd = fd;
+      connection.peer = PeerAddress(address);
+      if (!MakeRoom(connection.peer)) {
+        close(fd);
+        std::lock_guard lock(mutex_);
+        DeferLogLocked("modbus-server: connection from " + connection.peer +
+                       " refused: every slot is held by an active client");
+        continue;
+      }
+      const int yes = 1;
+      setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof(yes));
+      connection.id = ++last_connection_id_;
+      connection.accepted = Clock::now();
+      connection.tokens = limits().request_burst;
+      connection.tokens_at = connection.accepted;
+      const int id = connection.id;
+      connections_.push_back(std::move(connection));
+      Accepted(id);
+    }
+  }
+
+  void Accepted(int id) {
     std::lock_guard lock(mutex_);
     ++stats_.connections;
     if (stats_.connections > 1) ++stats_.reconnects;
@@ -426,26 +670,155 @@ class ModbusServerLink final : public RobotLink {
     changed_.notify_all();
   }
 
-  void Disconnected(const Connection& connection) {
-    close(connection.fd);
-    std::lock_guard lock(mutex_);
-    live_connections_.erase(connection.id);
-    if (connection.id == trigger_owner_) owner_lost_ = true;
-    changed_.notify_all();
+  /// One request token (token bucket: max_requests_per_second, up to request_burst saved).
+  bool TakeToken(Connection& connection) {
+    const auto now = Clock::now();
+    const double elapsed = std::chrono::duration<double>(now - connection.tokens_at).count();
+    connection.tokens_at = now;
+    connection.tokens = std::min<double>(
+        limits().request_burst, connection.tokens + elapsed * limits().max_requests_per_second);
+    if (connection.tokens < 1.0) return false;
+    connection.tokens -= 1.0;
+    return true;
   }
 
-  void Answer(const std::uint8_t* request, int length, int connection) {
-    const int header = modbus_get_header_length(context_);
-    const std::uint8_t unit = request[header - 1];
+  /// When the connection will have a request token again.
+  Clock::time_point TokenAvailable(const Connection& connection) const {
+    if (connection.tokens >= 1.0) return Clock::now();
+    const double wait_s = (1.0 - connection.tokens) / limits().max_requests_per_second;
+    return connection.tokens_at + std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(wait_s));
+  }
+
+  /// Answers one whole frame (MBAP header + PDU) into the connection's output.
+  void Answer(Connection& connection, const std::uint8_t* frame, std::size_t frame_bytes) {
+    const std::uint8_t unit = frame[6];
+    const std::uint8_t* pdu = frame + kMbapHeaderBytes;
+    const int pdu_length = static_cast<int>(frame_bytes - kMbapHeaderBytes);
+    std::vector<std::uint8_t> reply;
     if (query_.unit && unit != *query_.unit) {
-      modbus_reply_exception(context_, request, MODBUS_EXCEPTION_GATEWAY_TARGET);
-      return;
+      reply = ExceptionPdu(pdu[0], MODBUS_EXCEPTION_GATEWAY_TARGET);
+    } else {
+      std::lock_guard lock(mutex_);
+      peer_heard_steady_s_ = SteadyNowSeconds();
+      bool wrote_command = false;
+      reply = ExecuteLocked(pdu, pdu_length, &wrote_command);
+      if (wrote_command) QueueCommandLocked(connection.id);
     }
-    const bool writes_command = WritesCommandRegister(request + header, length - header);
-    std::lock_guard lock(mutex_);
-    peer_heard_steady_s_ = SteadyNowSeconds();
-    modbus_reply(context_, request, length, mapping_);
-    if (!writes_command) return;
+    if ((reply[0] & 0x80) == 0) connection.last_valid = Clock::now();
+    // The reply's MBAP header: the request's transaction id and unit id, protocol id 0, the
+    // length of unit id + PDU (Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3).
+    const std::size_t length = reply.size() + 1;
+    const char header[kMbapHeaderBytes] = {
+        static_cast<char>(frame[0]), static_cast<char>(frame[1]), 0, 0,
+        static_cast<char>(length >> 8), static_cast<char>(length & 0xFF),
+        static_cast<char>(unit)};
+    if (connection.output.empty()) connection.output_since = Clock::now();
+    connection.output.append(header, kMbapHeaderBytes);
+    connection.output.append(reply.begin(), reply.end());
+  }
+
+  static std::vector<std::uint8_t> ExceptionPdu(std::uint8_t function, std::uint8_t code) {
+    return {static_cast<std::uint8_t>(function | 0x80), code};
+  }
+
+  /// Executes one request PDU on the holding registers; returns the response PDU (or an
+  /// exception PDU). Function codes and limits: Modbus Application Protocol V1.1b3, 6.
+  /// `wrote_command`: a write that succeeded and covered register 0.
+  std::vector<std::uint8_t> ExecuteLocked(const std::uint8_t* pdu, int length,
+                                          bool* wrote_command) {
+    const std::uint8_t function = pdu[0];
+    std::uint16_t* registers = mapping_->tab_registers;
+    const auto in_map = [this](int address, int count) {
+      return address + count <= register_count_;
+    };
+    const auto words_reply = [&](int address, int count) {
+      std::vector<std::uint8_t> reply = {function, static_cast<std::uint8_t>(2 * count)};
+      for (int i = 0; i < count; ++i) {
+        reply.push_back(static_cast<std::uint8_t>(registers[address + i] >> 8));
+        reply.push_back(static_cast<std::uint8_t>(registers[address + i] & 0xFF));
+      }
+      return reply;
+    };
+    const auto write_words = [&](int address, int count, const std::uint8_t* values) {
+      for (int i = 0; i < count; ++i) registers[address + i] = Word(values + 2 * i);
+      *wrote_command = address == mb::kCommandRegister;
+    };
+    // A PDU whose length does not match its function is an illegal data value (exception 3).
+    switch (function) {
+      case MODBUS_FC_READ_HOLDING_REGISTERS: {  // 6.3: quantity 1..125
+        if (length != 5) break;
+        const int address = Word(pdu + 1);
+        const int count = Word(pdu + 3);
+        if (count < 1 || count > MODBUS_MAX_READ_REGISTERS) break;
+        if (!in_map(address, count)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+        return words_reply(address, count);
+      }
+      case MODBUS_FC_WRITE_SINGLE_REGISTER: {  // 6.6: the response echoes the request
+        if (length != 5) break;
+        const int address = Word(pdu + 1);
+        if (!in_map(address, 1)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+        write_words(address, 1, pdu + 3);
+        return {pdu, pdu + 5};
+      }
+      case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: {  // 6.12: quantity 1..123, bytes = 2 x quantity
+        if (length < 6) break;
+        const int address = Word(pdu + 1);
+        const int count = Word(pdu + 3);
+        const int bytes = pdu[5];
+        if (count < 1 || count > MODBUS_MAX_WRITE_REGISTERS || bytes != 2 * count ||
+            length != 6 + bytes) {
+          break;
+        }
+        if (!in_map(address, count)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+        write_words(address, count, pdu + 6);
+        return {pdu, pdu + 5};
+      }
+      case MODBUS_FC_MASK_WRITE_REGISTER: {  // 6.16: (current AND and) OR (or AND NOT and)
+        if (length != 7) break;
+        const int address = Word(pdu + 1);
+        if (!in_map(address, 1)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+        const std::uint16_t and_mask = Word(pdu + 3);
+        const std::uint16_t or_mask = Word(pdu + 5);
+        registers[address] = static_cast<std::uint16_t>((registers[address] & and_mask) |
+                                                        (or_mask & ~and_mask));
+        *wrote_command = address == mb::kCommandRegister;
+        return {pdu, pdu + 7};
+      }
+      case MODBUS_FC_WRITE_AND_READ_REGISTERS: {  // 6.17: read 1..125, write 1..121; write first
+        if (length < 10) break;
+        const int read_address = Word(pdu + 1);
+        const int read_count = Word(pdu + 3);
+        const int write_address = Word(pdu + 5);
+        const int write_count = Word(pdu + 7);
+        const int bytes = pdu[9];
+        if (read_count < 1 || read_count > MODBUS_MAX_WR_READ_REGISTERS || write_count < 1 ||
+            write_count > MODBUS_MAX_WR_WRITE_REGISTERS || bytes != 2 * write_count ||
+            length != 10 + bytes) {
+          break;
+        }
+        if (!in_map(read_address, read_count) || !in_map(write_address, write_count)) {
+          return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+        }
+        write_words(write_address, write_count, pdu + 10);
+        return words_reply(read_address, read_count);
+      }
+      case MODBUS_FC_READ_COILS:
+      case MODBUS_FC_READ_DISCRETE_INPUTS:
+      case MODBUS_FC_READ_INPUT_REGISTERS:
+      case MODBUS_FC_WRITE_SINGLE_COIL:
+      case MODBUS_FC_WRITE_MULTIPLE_COILS:
+        // Tables this server has with no entries: every address is illegal (exception 2, as
+        // libmodbus's modbus_reply answered with empty tables).
+        return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
+      default:
+        return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
+    }
+    return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+  }
+
+  /// A write to register 0 became a command: queue it for the cell loop.
+  void QueueCommandLocked(int connection) {
     const std::uint16_t command = mapping_->tab_registers[mb::kCommandRegister];
     if (command == mb::kCommandNone) return;
     if (events_.size() >= kMaxQueuedCommands) {
@@ -458,39 +831,30 @@ class ModbusServerLink final : public RobotLink {
         {command, mapping_->tab_registers[mb::kRequestSequenceRegister], connection});
     changed_.notify_all();
   }
-
-  /// True when the PDU (function code onward) is a write that succeeds and covers register 0.
-  bool WritesCommandRegister(const std::uint8_t* pdu, int length) const {
-    if (length < 5) return false;
-    int address = 0;
-    int count = 1;
-    switch (pdu[0]) {
-      case MODBUS_FC_WRITE_SINGLE_REGISTER:
-      case MODBUS_FC_MASK_WRITE_REGISTER:
-        address = Word(pdu + 1);
-        break;
-      case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
-        address = Word(pdu + 1);
-        count = Word(pdu + 3);
-        break;
-      case MODBUS_FC_WRITE_AND_READ_REGISTERS:
-        if (length < 9) return false;
-        address = Word(pdu + 5);
-        count = Word(pdu + 7);
-        break;
-      default:
-        return false;
-    }
-    return address == mb::kCommandRegister && count >= 1 && count <= MODBUS_MAX_WRITE_REGISTERS &&
-           address + count <= register_count_;
-  }
-
   // The log callback is called on the caller's thread only (it need not be thread-safe): lines
   // from the server thread wait here until the next WaitForTrigger/WaitForAcknowledge.
-  void DeferLogLocked(std::string line) { deferred_logs_.push_back(std::move(line)); }
+  // Bounded, in memory and in rate: a storm of hostile connections must neither grow memory
+  // nor flood the cell's log (at most kMaxLogLinesPerSecond lines, the rest counted).
+  void DeferLogLocked(std::string line) {
+    const auto now = Clock::now();
+    if (now - log_window_start_ >= std::chrono::seconds(1)) {
+      log_window_start_ = now;
+      log_window_lines_ = 0;
+    }
+    if (deferred_logs_.size() < kMaxDeferredLogs && log_window_lines_ < kMaxLogLinesPerSecond) {
+      ++log_window_lines_;
+      deferred_logs_.push_back(std::move(line));
+    } else {
+      ++suppressed_logs_;
+    }
+  }
   void FlushLogsLocked() {
     for (const std::string& line : deferred_logs_) Log(line);
     deferred_logs_.clear();
+    if (suppressed_logs_ > 0) {
+      Log("modbus-server: " + std::to_string(suppressed_logs_) + " more log lines suppressed");
+      suppressed_logs_ = 0;
+    }
   }
 
   CommandEvent PopEventLocked() {
@@ -544,6 +908,25 @@ class ModbusServerLink final : public RobotLink {
   }
 
   static constexpr std::size_t kMaxQueuedCommands = 64;
+  // Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3: the MBAP header is transaction id
+  // (2 bytes), protocol id (2), length (2: the bytes that follow, unit id included), unit id.
+  static constexpr std::size_t kMbapHeaderBytes = 7;
+  static constexpr int kMinMbapLength = 2;    ///< unit id + function code
+  static constexpr int kMaxMbapLength = 254;  ///< unit id + the largest PDU (253 bytes)
+  /// Bytes read ahead per connection: two of the largest frames (260 bytes each).
+  static constexpr std::size_t kReadAheadBytes = 2 * MODBUS_TCP_MAX_ADU_LENGTH;
+  static constexpr int kFramesPerRound = 4;    ///< per connection, per poll round
+  static constexpr int kAcceptsPerRound = 16;  ///< new connections taken per poll round
+  /// A connection at a limit gives way to a new one only after this long without a valid
+  /// request (ServerLimits::max_connections).
+  static constexpr milliseconds kEvictAfterQuiet{1000};
+  /// A new connection is safe from its own peer's newer connections for this long.
+  static constexpr milliseconds kEvictionGrace{200};
+  static constexpr std::size_t kMaxDeferredLogs = 200;
+  static constexpr int kMaxLogLinesPerSecond = 20;
+  /// After accept fails for want of descriptors (EMFILE, ENFILE), the listening socket is not
+  /// watched for this long: the pending connection stays readable, and poll() would spin.
+  static constexpr milliseconds kAcceptBackoff{100};
 
   std::string host_;
   ModbusUriOptions query_;
@@ -551,9 +934,9 @@ class ModbusServerLink final : public RobotLink {
   int port_ = 0;
   int listen_fd_ = -1;
   int wake_pipe_[2] = {-1, -1};
-  modbus_t* context_ = nullptr;          // server thread only (after construction)
   std::vector<Connection> connections_;  // server thread only
   int last_connection_id_ = 0;           // server thread only
+  Clock::time_point accept_paused_until_{};  // server thread only
   std::atomic<bool> stopping_{false};
   std::thread thread_;
 
@@ -562,6 +945,9 @@ class ModbusServerLink final : public RobotLink {
   modbus_mapping_t* mapping_ = nullptr;
   std::deque<CommandEvent> events_;
   std::vector<std::string> deferred_logs_;
+  std::size_t suppressed_logs_ = 0;
+  Clock::time_point log_window_start_{};
+  int log_window_lines_ = 0;
   std::set<int> live_connections_;
   int trigger_owner_ = -1;    ///< connection that sent the trigger being served
   bool owner_lost_ = false;   ///< ... and has disconnected since
