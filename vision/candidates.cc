@@ -113,6 +113,75 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
                      std::int64_t&)>
       candidates_of;
   std::unordered_map<int, std::vector<int>> rows;  // rectified feature networks: right features by row
+  // Unrectified: right features in a uniform grid; a left feature visits only the cells its
+  // epipolar band (|a x + b y + c| <= max_epipolar_distance_px) crosses, in index order, so
+  // the candidates are those of testing every right feature (and 10-50x fewer pairs are
+  // tested: the all-pairs gating was most of `pick`'s match time).
+  const bool band_search = options.kind == hnn::NetworkKind::kFeatureVsFeature && !options.rectified &&
+                           !options.dense && !right_points.empty();
+  struct Grid {
+    float x0 = 0, y0 = 0, cell = 16;
+    int nx = 1, ny = 1;
+    std::vector<std::int32_t> start, items;
+  } grid;
+  if (band_search) {
+    float x1 = right_points[0].x(), y1 = right_points[0].y();
+    grid.x0 = x1, grid.y0 = y1;
+    for (const auto& r : right_points) {
+      grid.x0 = std::min(grid.x0, r.x()), grid.y0 = std::min(grid.y0, r.y());
+      x1 = std::max(x1, r.x()), y1 = std::max(y1, r.y());
+    }
+    const double n_right = static_cast<double>(right_points.size());
+    grid.cell = static_cast<float>(std::max({16.0, 4.0 * options.max_epipolar_distance_px,
+                                             std::sqrt((static_cast<double>(x1) - grid.x0 + 1.0) *
+                                                       (static_cast<double>(y1) - grid.y0 + 1.0) /
+                                                       (4.0 * n_right + 4096.0))}));
+    grid.nx = static_cast<int>((x1 - grid.x0) / grid.cell) + 1;
+    grid.ny = static_cast<int>((y1 - grid.y0) / grid.cell) + 1;
+    const auto cells = static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny);
+    grid.start.assign(cells + 1, 0);
+    std::vector<std::int32_t> cell_of(right_points.size());
+    for (std::size_t k = 0; k < right_points.size(); ++k) {
+      const int cx = std::min(grid.nx - 1, static_cast<int>((right_points[k].x() - grid.x0) / grid.cell));
+      const int cy = std::min(grid.ny - 1, static_cast<int>((right_points[k].y() - grid.y0) / grid.cell));
+      cell_of[k] = cy * grid.nx + cx;
+      ++grid.start[static_cast<std::size_t>(cell_of[k]) + 1];
+    }
+    for (std::size_t c = 0; c < cells; ++c) grid.start[c + 1] += grid.start[c];
+    grid.items.resize(right_points.size());
+    std::vector<std::int32_t> fill(grid.start.begin(), grid.start.end() - 1);
+    for (std::size_t k = 0; k < right_points.size(); ++k) {
+      grid.items[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[k])]++)] =
+          static_cast<std::int32_t>(k);
+    }
+  }
+  // The right features in the cells the band of `line` crosses, sorted by index.
+  auto band_candidates = [&](const Eigen::Vector3d& line, std::vector<int>& found) {
+    found.clear();
+    const double a = line.x(), b = line.y(), c = line.z();
+    if (!(std::abs(a) > 0.0 || std::abs(b) > 0.0) || !line.allFinite()) return;
+    // Along the axis the line is closer to: per cell column (or row), the band's extent.
+    const bool by_column = std::abs(b) >= std::abs(a);
+    const double along = by_column ? b : a, across = by_column ? a : b;
+    const double half = options.max_epipolar_distance_px / std::abs(along) + 1e-3;
+    const int n_slices = by_column ? grid.nx : grid.ny, n_other = by_column ? grid.ny : grid.nx;
+    const double origin = by_column ? grid.x0 : grid.y0, other_origin = by_column ? grid.y0 : grid.x0;
+    for (int s = 0; s < n_slices; ++s) {
+      const double u0 = origin + s * static_cast<double>(grid.cell), u1 = u0 + grid.cell;
+      const double v0 = -(across * u0 + c) / along, v1 = -(across * u1 + c) / along;
+      const double low = (std::min(v0, v1) - half - other_origin) / grid.cell;
+      const double high = (std::max(v0, v1) + half - other_origin) / grid.cell;
+      if (high < 0.0 || low > n_other - 1.0 + 1.0) continue;
+      const int first = std::max(0, static_cast<int>(std::floor(low)));
+      const int last = std::min(n_other - 1, static_cast<int>(std::floor(high)));
+      for (int o = first; o <= last; ++o) {
+        const int cell = by_column ? o * grid.nx + s : s * grid.nx + o;
+        found.insert(found.end(), grid.items.begin() + grid.start[static_cast<std::size_t>(cell)],
+                     grid.items.begin() + grid.start[static_cast<std::size_t>(cell) + 1]);
+      }
+    }
+    std::sort(found.begin(), found.end());
+  };
   if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
     // Columns are disparity levels min..max (thesis code, operation mode 3). A level beyond the
     // image width can never hold a candidate; refuse an absurd range before allocating for it.
@@ -208,6 +277,10 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
           if (it == rows.end()) continue;
           for (int k : it->second) consider(k);
         }
+      } else if (band_search) {
+        thread_local std::vector<int> in_band;
+        band_candidates(line, in_band);
+        for (int k : in_band) consider(k);
       } else {
         for (int k = 0; k < static_cast<int>(right_points.size()); ++k) consider(k);
       }

@@ -6,8 +6,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/utility.hpp>
 #include <random>
+#include <set>
 
 #include "calib/calibration.h"
+#include "calib/epipolar.h"
 #include "vision/candidates.h"
 #include "vision/correlation.h"
 
@@ -202,6 +204,52 @@ TEST(BuildCandidates, TheSameProblemOnOneThreadAsOnMany) {
       EXPECT_EQ(x.right_point, y.right_point);
       EXPECT_EQ(x.correlation, y.correlation);
     }
+  }
+}
+
+// Unrectified gating visits only the grid cells the epipolar band crosses: the candidates must
+// be exactly those of testing every pair, for steep, shallow and tilted epipolar lines.
+TEST(BuildCandidates, EpipolarBandSearchFindsEveryPairOfTheAllPairsTest) {
+  std::mt19937 random(17);
+  cv::Mat left(120, 160, CV_8UC1), right(120, 160, CV_8UC1);
+  cv::randu(left, 0, 255);
+  cv::randu(right, 0, 255);
+  const ZnccMatcher zncc(left, right, 5);
+  std::uniform_real_distribution<float> x(0.0f, 159.0f), y(0.0f, 119.0f);
+  std::vector<Eigen::Vector2f> left_points, right_points;
+  for (int n = 0; n < 300; ++n) left_points.emplace_back(x(random), y(random));
+  for (int n = 0; n < 3000; ++n) right_points.emplace_back(x(random), y(random));
+  Eigen::Matrix3d K;
+  K << 100, 0, 80, 0, 100, 60, 0, 0, 1;
+  // Baselines along x (near-horizontal lines), along y (near-vertical) and oblique, plus a
+  // rotation so that the lines tilt and converge.
+  for (const Eigen::Vector3d& baseline :
+       {Eigen::Vector3d(-50, 0, 0), Eigen::Vector3d(0, -50, 0), Eigen::Vector3d(-30, 25, 10)}) {
+    calib::StereoCalibration calibration;
+    const Eigen::Matrix3d R =
+        Eigen::AngleAxisd(0.2, Eigen::Vector3d(0.3, 1.0, 0.2).normalized()).toRotationMatrix();
+    calibration.P1 << K, Eigen::Vector3d::Zero();
+    calibration.P2 << K * R, K * baseline;
+    calibration.DeriveFromProjections();
+    CandidateOptions options;
+    options.top_k = 0;
+    options.min_correlation = -1.0f;
+    options.max_epipolar_distance_px = 2.0;
+    const CandidateReport report = BuildCandidates(left_points, right_points, zncc, &calibration, options);
+    std::set<std::pair<int, int>> expected, found;
+    for (int i = 0; i < static_cast<int>(left_points.size()); ++i) {
+      const Eigen::Vector3d line =
+          calib::EpipolarLineInRight(calibration.F, left_points[static_cast<std::size_t>(i)].cast<double>());
+      for (int k = 0; k < static_cast<int>(right_points.size()); ++k) {
+        const Eigen::Vector2f& r = right_points[static_cast<std::size_t>(k)];
+        const auto tau = static_cast<float>(std::abs(line.x() * r.x() + line.y() * r.y() + line.z()));
+        if (tau <= 2.0f) expected.insert({i, k});
+      }
+    }
+    for (const hnn::Candidate& c : report.problem.candidates) found.insert({c.left, c.column});
+    EXPECT_GT(expected.size(), 1000u);
+    EXPECT_EQ(found, expected) << "baseline " << baseline.transpose();
+    EXPECT_LT(report.pairs_tested, static_cast<std::int64_t>(left_points.size() * right_points.size() / 4));
   }
 }
 
