@@ -377,7 +377,7 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
 #if WEIGHTS != 2
     float4 acc4[ROW_CHUNKS];
     for (int c = 0; c < ROW_CHUNKS; ++c) acc4[c] = (float4)(0.0f);
-#if ROW_PAD == 4
+#if ROW_PAD == 4 || ROW_PAD == 8
     float16 acc16 = (float16)(0.0f);
 #endif
 #endif
@@ -403,6 +403,20 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
 #else
       acc16 += vload16(t, blocks) * vj.s0000111122223333;
 #endif
+#elif ROW_PAD == 8
+      // Two 8-slot columns a 16-wide vector (column q at q * 8, slots k fastest), each times
+      // its V[j,q]; the halves are summed once after the loop.
+      const float8 vj = vload8(j, V_in);
+#if WEIGHTS == 1
+#define BLOCK16(h) vload_half16(4 * t + (h), blocks)
+#else
+#define BLOCK16(h) vload16(4 * t + (h), blocks)
+#endif
+      acc16 += BLOCK16(0) * vj.s0000000011111111;
+      acc16 += BLOCK16(1) * vj.s2222222233333333;
+      acc16 += BLOCK16(2) * vj.s4444444455555555;
+      acc16 += BLOCK16(3) * vj.s6666666677777777;
+#undef BLOCK16
 #else
       // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
       // a vector FMA, no horizontal sums.
@@ -417,12 +431,16 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
 #endif
         }
       }
-#endif  // ROW_PAD == 4
+#endif  // ROW_PAD == 4, 8
 #endif
     }
 #if WEIGHTS != 2
 #if ROW_PAD == 4
     acc4[0] = (acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef);
+#elif ROW_PAD == 8
+    const float8 acc8 = acc16.lo + acc16.hi;
+    acc4[0] = acc8.lo;
+    acc4[1] = acc8.hi;
 #endif
     for (int c = 0; c < ROW_CHUNKS; ++c) vstore4(acc4[c], c, acc);
 #endif

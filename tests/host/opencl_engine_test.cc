@@ -173,7 +173,7 @@ TEST_P(OpenClStorageTest, SolveAgreesWithTheCpuEngine) {
   const double tolerance = storage == WeightStorage::kBlockedHalf ? 2e-3 : 1e-4;
   for (std::uint64_t seed : {301u, 302u, 303u}) {
     for (Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
-      for (int max_per_row : {0, 4}) {
+      for (int max_per_row : {0, 4, 8}) {
         const MatchingProblem problem = testing::SyntheticProblem(seed, 150, 50, false, max_per_row);
         EnergyOptions energy;
         energy.support_radius_px = 15.0;
@@ -205,7 +205,7 @@ TEST_P(OpenClStorageTest, PerWeightBlockBuildAgreesWithThePerRowBuild) {
     GTEST_SKIP() << "row blocks only";
   }
   for (const Objective objective : {Objective::kGeometrySimilarity, Objective::kThesis}) {
-    for (int max_per_row : {0, 4}) {
+    for (int max_per_row : {0, 4, 8}) {
       const MatchingProblem problem = testing::SyntheticProblem(311, 150, 50, false, max_per_row);
       EnergyOptions energy;
       energy.support_radius_px = 15.0;
