@@ -14,6 +14,7 @@
 //   HNNSTEREO_STRESS_TRUE_CAMERAS=1  sense with the true cameras instead of calibrating
 //   HNNSTEREO_STRESS_SEEDS=A,B,...   only these seeds of the range (debugging one failure)
 //   HNNSTEREO_STRESS_OLD_MERGE=1     without the outline join (the rule before issue 12)
+//   HNNSTEREO_STRESS_STOP=decisions  the decisions stop rule (hnn-default's) instead of the energy rule
 // Without HNNSTEREO_STRESS=1 the test is skipped.
 #include <gtest/gtest.h>
 
@@ -155,6 +156,12 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   const std::uint64_t first_seed = std::stoull(Env("HNNSTEREO_STRESS_FIRST_SEED", "5000"));
   const bool true_cameras = Env("HNNSTEREO_STRESS_TRUE_CAMERAS", "0") == "1";
   PositionSensingOptions sensing;  // the library's defaults: what `pick` runs
+  if (Env("HNNSTEREO_STRESS_STOP", "") == "decisions") {
+    // The match preset's stop rule instead of the energy rule (to measure it on these scenes).
+    sensing.matcher.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
+    sensing.matcher.dynamics.energy_interval = 2;
+    sensing.matcher.dynamics.stable_checks = 2;
+  }
   sensing.matcher.engine = hnn::EngineKind::kCpu;
   if (Env("HNNSTEREO_STRESS_OLD_MERGE", "0") == "1") sensing.pose.join_face_outlines = false;
   // Debugging: keep small parts (HNNSTEREO_STRESS_MIN_STRONG=1) to see where a face's pieces go.
