@@ -29,5 +29,10 @@ BUILD_DIR=${BUILD_DIR:-build}
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
   cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 fi
+# scripts/test.sh --sanitize: the sanitizer build (its own BUILD_DIR), set on every run so that a
+# folder configured before keeps the requested sanitizers.
+if [ -n "${HNNSTEREO_SANITIZE:-}" ]; then
+  cmake -S . -B "$BUILD_DIR" -DHNNSTEREO_SANITIZE="$HNNSTEREO_SANITIZE" >/dev/null
+fi
 # Two cores: keep the build within memory and time.
 cmake --build "$BUILD_DIR" -j "${BUILD_JOBS:-2}"
