@@ -23,6 +23,10 @@ bool AllFinite(const Eigen::MatrixXd& m) { return m.allFinite(); }
 template <int R, int C>
 Eigen::Matrix<double, R, C> ReadMatrix(const cv::FileStorage& fs, const std::string& key,
                                        const std::string& path, bool required) {
+  if (const std::string problem = CheckMatrixNode(fs[key], R * C); !problem.empty()) {
+    throw std::runtime_error("calibration '" + path + "': '" + key + "' " + problem +
+                             " (must be " + std::to_string(R) + "x" + std::to_string(C) + ")");
+  }
   cv::Mat mat;
   fs[key] >> mat;
   if (mat.empty()) {
@@ -194,6 +198,12 @@ StereoCalibration LoadCalibration(const std::string& path) {
         Intrinsics intr;
         intr.K1 = ReadMatrix<3, 3>(fs, "K1", path, true);
         intr.K2 = ReadMatrix<3, 3>(fs, "K2", path, true);
+        // At most 14 distortion coefficients (OpenCV's largest model).
+        for (const char* key : {"D1", "D2"}) {
+          if (const std::string problem = CheckMatrixNode(fs[key], 14); !problem.empty()) {
+            throw std::runtime_error("calibration file '" + path + "': '" + key + "' " + problem);
+          }
+        }
         cv::Mat d;
         fs["D1"] >> d;
         if (!d.empty()) d.reshape(1, 1).convertTo(d, CV_64F), intr.D1.assign(d.begin<double>(), d.end<double>());

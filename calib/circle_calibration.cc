@@ -153,6 +153,11 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
       placement.left_image = ResolveImage(height, "left", dir, path, index);
       placement.right_image = ResolveImage(height, "right", dir, path, index);
       if (!height["world_from_target"].empty()) {
+        if (const std::string problem = CheckMatrixNode(height["world_from_target"], 16);
+            !problem.empty()) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " world_from_target " + problem);
+        }
         cv::Mat matrix;
         height["world_from_target"] >> matrix;
         if (matrix.total() != 16) {
@@ -167,6 +172,10 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
         if (height["origin_mm"].empty()) {
           throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
                                    " needs 'origin_mm' (and 'yaw_deg') or 'world_from_target'");
+        }
+        if (const std::string problem = CheckMatrixNode(height["origin_mm"], 3); !problem.empty()) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " origin_mm " + problem);
         }
         height["origin_mm"] >> origin;
         if (origin.size() != 3) {

@@ -308,6 +308,37 @@ cv::Mat ReadImageFileWithin(const std::string& path, int flags, const ImageLimit
   return image;
 }
 
+std::string CheckMatrixNode(const cv::FileNode& node, std::size_t max_elements) {
+  if (node.empty()) return {};
+  if (node.isSeq()) {
+    return node.size() <= max_elements ? std::string()
+                                       : "has " + std::to_string(node.size()) + " numbers, more than " +
+                                             std::to_string(max_elements);
+  }
+  if (!node.isMap()) return node.isInt() || node.isReal() ? std::string() : "is not a matrix";
+  const cv::FileNode rows = node["rows"], cols = node["cols"], type = node["dt"];
+  if (!rows.isInt() || !cols.isInt() || !type.isString()) {
+    return "is not a matrix (rows, cols and dt missing or not whole numbers)";
+  }
+  // dt: an optional channel count, then the element type ("d", "3f").
+  const std::string dt = static_cast<std::string>(type);
+  long long channels = 1;
+  std::size_t digits = 0;
+  while (digits < dt.size() && digits < 4 && dt[digits] >= '0' && dt[digits] <= '9') ++digits;
+  if (digits > 0 && !ParseIntWithin(dt.substr(0, digits), 1, 512, &channels)) {
+    return "has a bad element type '" + dt + "'";
+  }
+  const long long row_count = static_cast<int>(rows), col_count = static_cast<int>(cols);
+  if (row_count < 0 || col_count < 0 ||
+      static_cast<unsigned long long>(row_count) * static_cast<unsigned long long>(col_count) *
+              static_cast<unsigned long long>(channels) >
+          max_elements) {
+    return "claims " + std::to_string(row_count) + "x" + std::to_string(col_count) +
+           " elements, more than " + std::to_string(max_elements);
+  }
+  return {};
+}
+
 std::string TextInputLimits::Check() const {
   if (max_file_bytes == 0) return "TextInputLimits.max_file_bytes must be > 0";
   if (!(max_abs_mm > 0.0) || !std::isfinite(max_abs_mm)) {

@@ -59,6 +59,12 @@ bool ReadImageHeaderSize(const std::vector<unsigned char>& encoded, int* width, 
 /// libjpeg, libtiff) goes into that line instead of onto stderr before it.
 cv::Mat ReadImageFileWithin(const std::string& path, int flags, const ImageLimits& limits = {});
 
+/// Empty when the OpenCV FileStorage node `node` is a matrix or list of at most `max_elements`
+/// numbers, else a reason. Call before `node >> cv::Mat`: OpenCV allocates rows x cols x channels
+/// from the header before it looks at the data, so a 1 kB CAL.yml claiming "rows: 100000,
+/// cols: 100000" asks for 80 GB (found by fuzz_cal_yml).
+std::string CheckMatrixNode(const cv::FileNode& node, std::size_t max_elements);
+
 /// Reads the whole text file `path` (named `what` in messages, e.g. "calibration file").
 /// Throws std::runtime_error with one line when it does not exist, is not a regular file, is
 /// larger than `limits.max_file_bytes` or cannot be read.

@@ -173,6 +173,13 @@ TEST_F(HostileInputCli, CalYmlNonFiniteAndAbsurdNumbersAreRefused) {
                    "K2: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
                    "   data: [ 500., 0., 225., 0., 500., 187., 0., 0., 1. ]\n"));
   ExpectRefused(MatchWithCalib(Path("input_nan_k.yml")), 1, "intrinsics");
+  // A matrix header claiming 100000 x 100000 doubles: OpenCV allocated the 80 GB before reading
+  // the data (found by fuzz_cal_yml); now refused from the header.
+  WriteFile("input_rows.yml",
+            "%YAML:1.0\n---\nP1: !!opencv-matrix\n   rows: 100000\n   cols: 100000\n   dt: d\n"
+            "   data: [ 1., 2. ]\n");
+  ExpectRefused(MatchWithCalib(Path("input_rows.yml")), 1,
+                "'P1' claims 100000x100000 elements, more than 12");
 }
 
 TEST_F(HostileInputCli, MiddleburyCalibTxtNonFiniteAndAbsurdNumbersAreRefused) {
@@ -293,6 +300,16 @@ TEST_F(HostileInputCli, TargetYmlAbsurdNumbersAreRefused) {
                 "'rows' must be a whole number in [2, 1000]");
   ExpectRefused(target("rows: 4\ncols: 5\n", "0, 1e300, 0"), 1, "beyond +-1e7 mm");
   ExpectRefused(target("rows: 4\ncols: 5\n", "0, .nan, 0"), 1, "non-finite");
+  // A pose matrix header claiming 65536 x 65536 doubles (32 GB before the data was looked at;
+  // found by fuzz_target_yml).
+  WriteFile("input_target/target.yml",
+            "%YAML:1.0\n---\nrows: 4\ncols: 5\npitch_mm: 25\nheights:\n"
+            "  - { left: l.png, right: l.png, world_from_target: !!opencv-matrix "
+            "{ rows: 65536, cols: 65536, dt: d, data: [ 1., 0. ] } }\n"
+            "  - { left: l.png, right: l.png, origin_mm: [0, 0, 50] }\n");
+  ExpectRefused(RunCli("calibrate --target circles --dir " + Path("input_target") + " --out " +
+                       Path("cal.yml")),
+                1, "world_from_target claims 65536x65536 elements, more than 16");
 }
 
 }  // namespace
