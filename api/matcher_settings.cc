@@ -1,5 +1,6 @@
 #include "api/matcher_settings.h"
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -24,8 +25,17 @@ double ParseDouble(const std::string& name, const std::string& value) {
   if (used == 0 || used != value.size()) {
     throw std::invalid_argument("option " + Quoted(name) + " needs a number (got '" + value + "')");
   }
+  // std::stod reads "nan" and "inf"; no option means either, and a NaN passes every "x < limit"
+  // check downstream unnoticed.
+  if (!std::isfinite(number)) {
+    throw std::invalid_argument("option " + Quoted(name) + " needs a finite number (got '" +
+                                value + "')");
+  }
   return number;
 }
+
+// Largest --memory-budget-mb, 2^40 MB: beyond any machine, and its bytes still fit a size_t.
+constexpr double kMaxMemoryBudgetMb = 1099511627776.0;
 
 long long ParseInteger(const std::string& name, const std::string& value) {
   std::size_t used = 0;
@@ -240,7 +250,12 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
     o.candidates.z_range_mm = std::make_pair(zmin, zmax);
   }
   const double memory_budget_mb = ParseDouble("memory-budget-mb", strings["memory-budget-mb"]);
-  if (!(memory_budget_mb > 0)) throw std::invalid_argument("memory-budget-mb must be positive");
+  // Bounded above so that the conversion to bytes is defined (inf or 1e300 would not fit a
+  // size_t: undefined behaviour, seen as a budget of 0 MB). 2^40 MB is beyond any machine.
+  if (!(memory_budget_mb > 0) || !(memory_budget_mb <= kMaxMemoryBudgetMb)) {
+    throw std::invalid_argument("memory-budget-mb must be a number in (0, 1099511627776] (is " +
+                                strings["memory-budget-mb"] + ")");
+  }
   o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
   settings.device = strings["device"];
   // The geometry (rectified or not) is settled by the call; check the rest now.

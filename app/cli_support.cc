@@ -1,5 +1,7 @@
 #include "app/cli_support.h"
 
+#include "calib/input_limits.h"
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -46,8 +48,15 @@ std::vector<std::string> ExpandConfigArguments(
     }
   }
   if (config_path.empty()) return arguments;
-  std::ifstream input(config_path);
-  if (!input) throw std::invalid_argument("--config file '" + config_path + "' cannot be read");
+  if (!std::ifstream(config_path)) {
+    throw std::invalid_argument("--config file '" + config_path + "' cannot be read");
+  }
+  std::istringstream input;
+  try {
+    input.str(calib::ReadTextFileWithin(config_path, "--config file"));
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());  // a refused --config is a usage error (exit 2)
+  }
   auto given = [&](const std::string& option) {
     for (const std::string& argument : rest) {
       if (argument == option || argument.rfind(option + "=", 0) == 0) return true;

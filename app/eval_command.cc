@@ -86,6 +86,12 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
 void RunEval(EvalArgs& args) {
   const auto engine = vision::ParseEngine(args.engine);
   if (!engine) throw std::invalid_argument("--engine: unknown '" + args.engine + "'");
+  // Bounded so that the conversion to bytes below is defined (inf, NaN or 1e300 do not fit a
+  // size_t); 2^40 MB is beyond any machine.
+  if (!(args.memory_budget_mb > 0.0) || !(args.memory_budget_mb <= 1099511627776.0)) {
+    throw std::invalid_argument("--memory-budget-mb must be a number in (0, 1099511627776] (is " +
+                                std::to_string(args.memory_budget_mb) + ")");
+  }
   vision::EvaluationOptions options;
   options.presets.clear();
   std::stringstream names(args.presets);

@@ -13,6 +13,7 @@
 
 #include "calib/atomic_file.h"
 #include "calib/epipolar.h"
+#include "calib/input_limits.h"
 
 namespace hnnstereo::calib {
 namespace {
@@ -22,6 +23,10 @@ bool AllFinite(const Eigen::MatrixXd& m) { return m.allFinite(); }
 template <int R, int C>
 Eigen::Matrix<double, R, C> ReadMatrix(const cv::FileStorage& fs, const std::string& key,
                                        const std::string& path, bool required) {
+  if (const std::string problem = CheckMatrixNode(fs[key], R * C); !problem.empty()) {
+    throw std::runtime_error("calibration '" + path + "': '" + key + "' " + problem +
+                             " (must be " + std::to_string(R) + "x" + std::to_string(C) + ")");
+  }
   cv::Mat mat;
   fs[key] >> mat;
   if (mat.empty()) {
@@ -71,6 +76,25 @@ std::string StereoCalibration::Check() const {
   if (svd1.singularValues()(2) <= 1e-12 * svd1.singularValues()(0)) return "P1 is rank-deficient";
   if (svd2.singularValues()(2) <= 1e-12 * svd2.singularValues()(0)) return "P2 is rank-deficient";
   if (image_width < 0 || image_height < 0) return "negative image size";
+  const int max_side = TextInputLimits{}.max_image_side_px;
+  if (image_width > max_side || image_height > max_side) {
+    return "image size " + std::to_string(image_width) + "x" + std::to_string(image_height) +
+           " is beyond the limit of " + std::to_string(max_side) + " px per side";
+  }
+  if (intrinsics) {
+    const Intrinsics& intr = *intrinsics;
+    auto finite = [](const std::vector<double>& values) {
+      for (double v : values) {
+        if (!std::isfinite(v)) return false;
+      }
+      return true;
+    };
+    // Lens distortion is applied to every feature: a NaN here would poison every match.
+    if (!intr.K1.allFinite() || !intr.K2.allFinite() || !intr.R.allFinite() ||
+        !intr.T.allFinite() || !finite(intr.D1) || !finite(intr.D2)) {
+      return "the intrinsics (K1 D1 K2 D2 R T) have non-finite values";
+    }
+  }
   return {};
 }
 
@@ -99,27 +123,37 @@ StereoCalibration ParseMiddleburyCalib(const std::string& text) {
   } catch (const std::exception&) {
     throw std::runtime_error("Middlebury calib.txt: 'baseline' is not a number");
   }
+  // stod accepts "nan" and "inf"; a zero baseline makes both cameras one (F = 0).
+  if (!std::isfinite(baseline) || baseline == 0.0 ||
+      std::abs(baseline) > TextInputLimits{}.max_abs_mm) {
+    throw std::runtime_error("Middlebury calib.txt: 'baseline' must be a finite non-zero length "
+                             "within +-1e7 mm (is '" + values["baseline"] + "')");
+  }
   StereoCalibration cal;
   cal.P1.leftCols<3>() = K0;
   cal.P1.col(3).setZero();
   cal.P2.leftCols<3>() = K1;
   cal.P2.col(3) = K1 * Eigen::Vector3d(-baseline, 0.0, 0.0);
-  if (values.count("width")) cal.image_width = std::atoi(values["width"].c_str());
-  if (values.count("height")) cal.image_height = std::atoi(values["height"].c_str());
+  // Strict integers: std::atoi has undefined behaviour on overflow and reads "1e9" as 1.
+  const int max_side = TextInputLimits{}.max_image_side_px;
+  for (const auto& [key, size] : {std::pair<const char*, int*>{"width", &cal.image_width},
+                                  std::pair<const char*, int*>{"height", &cal.image_height}}) {
+    if (!values.count(key)) continue;
+    long long parsed = 0;
+    if (!ParseIntWithin(values[key], 0, max_side, &parsed)) {
+      throw std::runtime_error(std::string("Middlebury calib.txt: '") + key +
+                               "' must be a whole number of pixels in [0, " +
+                               std::to_string(max_side) + "] (is '" + values[key] + "')");
+    }
+    *size = static_cast<int>(parsed);
+  }
   cal.rectified = true;
   cal.DeriveFromProjections();
   return cal;
 }
 
 StereoCalibration LoadCalibration(const std::string& path) {
-  if (!std::filesystem::exists(path)) {
-    throw std::runtime_error("calibration file '" + path + "' does not exist");
-  }
-  std::ifstream file(path);
-  if (!file) throw std::runtime_error("calibration file '" + path + "' cannot be read");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  const std::string text = buffer.str();
+  const std::string text = ReadTextFileWithin(path, "calibration file");
 
   StereoCalibration cal;
   if (text.find("cam0") != std::string::npos && text.find("baseline") != std::string::npos) {
@@ -140,18 +174,36 @@ StereoCalibration LoadCalibration(const std::string& path) {
       const Eigen::Matrix3d F = ReadMatrix<3, 3>(fs, "F", path, false);
       cal.DeriveFromProjections();
       if (!fs["F"].empty()) cal.F = F;  // keep a stored F (may be deliberately perturbed)
-      if (!fs["image_width"].empty()) fs["image_width"] >> cal.image_width;
-      if (!fs["image_height"].empty()) fs["image_height"] >> cal.image_height;
+      // Read as a number first: OpenCV rounds a real into an int without a range check.
+      for (const auto& [key, size] :
+           {std::pair<const char*, int*>{"image_width", &cal.image_width},
+            std::pair<const char*, int*>{"image_height", &cal.image_height}}) {
+        const cv::FileNode node = fs[key];
+        if (node.empty()) continue;
+        const double value = node.isInt() || node.isReal() ? static_cast<double>(node) : -1.0;
+        if (!(value >= 0.0 && value <= TextInputLimits{}.max_image_side_px) ||
+            value != std::floor(value)) {
+          throw std::runtime_error("calibration file '" + path + "': '" + key +
+                                   "' must be a whole number of pixels in [0, " +
+                                   std::to_string(TextInputLimits{}.max_image_side_px) + "]");
+        }
+        *size = static_cast<int>(value);
+      }
       if (!fs["units"].empty()) fs["units"] >> cal.units;
       if (!fs["rectified"].empty()) {
-        int rectified = 0;
-        fs["rectified"] >> rectified;
-        cal.rectified = rectified != 0;
+        // As a double: OpenCV's int read rounds a huge real without a range check.
+        cal.rectified = static_cast<double>(fs["rectified"]) != 0.0;
       }
       if (!fs["K1"].empty() && !fs["K2"].empty()) {
         Intrinsics intr;
         intr.K1 = ReadMatrix<3, 3>(fs, "K1", path, true);
         intr.K2 = ReadMatrix<3, 3>(fs, "K2", path, true);
+        // At most 14 distortion coefficients (OpenCV's largest model).
+        for (const char* key : {"D1", "D2"}) {
+          if (const std::string problem = CheckMatrixNode(fs[key], 14); !problem.empty()) {
+            throw std::runtime_error("calibration file '" + path + "': '" + key + "' " + problem);
+          }
+        }
         cv::Mat d;
         fs["D1"] >> d;
         if (!d.empty()) d.reshape(1, 1).convertTo(d, CV_64F), intr.D1.assign(d.begin<double>(), d.end<double>());

@@ -11,6 +11,7 @@
 
 #include "calib/dlt.h"
 #include "calib/fundamental.h"
+#include "calib/input_limits.h"
 
 namespace hnnstereo::calib {
 
@@ -80,8 +81,7 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
       if (!std::filesystem::is_regular_file(path)) {
         throw std::runtime_error("chessboard image '" + path + "' does not exist");
       }
-      images[camera] = cv::imread(path, cv::IMREAD_GRAYSCALE);
-      if (images[camera].empty()) throw std::runtime_error("cannot read image '" + path + "'");
+      images[camera] = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
       if (image_size[camera].area() == 0) {
         image_size[camera] = images[camera].size();
       } else if (images[camera].size() != image_size[camera]) {

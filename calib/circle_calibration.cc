@@ -16,6 +16,7 @@
 #include "calib/circle_target_render.h"
 #include "calib/epipolar.h"
 #include "calib/fundamental.h"
+#include "calib/input_limits.h"
 
 namespace hnnstereo::calib {
 namespace {
@@ -32,6 +33,19 @@ double ReadNumber(const cv::FileNode& node, const std::string& key, const std::s
   const double number = static_cast<double>(value);
   if (!std::isfinite(number)) {
     throw std::runtime_error(Where(path) + ": '" + key + "' is not finite");
+  }
+  return number;
+}
+
+// A circle grid larger than this is no target a camera resolves (1000 x 1000 circles at 4 px
+// each already fill a 4000 x 4000 image).
+constexpr int kMaxTargetRowsOrCols = 1000;
+
+// A length in mm: finite (ReadNumber) and no larger than any cell.
+double ReadLength(const cv::FileNode& node, const std::string& key, const std::string& path) {
+  const double number = ReadNumber(node, key, path);
+  if (std::abs(number) > TextInputLimits{}.max_abs_mm) {
+    throw std::runtime_error(Where(path) + ": '" + key + "' is beyond +-1e7 mm");
   }
   return number;
 }
@@ -99,14 +113,25 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
   }
   TargetDescription target;
   try {
-    cv::FileStorage storage(path, cv::FileStorage::READ | cv::FileStorage::FORMAT_YAML);
+    const std::string text = ReadTextFileWithin(path, "target.yml");
+    cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY |
+                                      cv::FileStorage::FORMAT_YAML);
     if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");
     const cv::FileNode root = storage.root();
-    target.grid.rows = static_cast<int>(ReadNumber(root, "rows", path));
-    target.grid.cols = static_cast<int>(ReadNumber(root, "cols", path));
-    target.grid.pitch_mm = ReadNumber(root, "pitch_mm", path);
+    // Range first: casting 1e12 to int is undefined, and rows x cols circles are searched for.
+    for (const auto& [key, count] : {std::pair<const char*, int*>{"rows", &target.grid.rows},
+                                     std::pair<const char*, int*>{"cols", &target.grid.cols}}) {
+      const double value = ReadNumber(root, key, path);
+      if (value < 2.0 || value > kMaxTargetRowsOrCols || value != std::floor(value)) {
+        throw std::runtime_error(Where(path) + ": '" + key + "' must be a whole number in [2, " +
+                                 std::to_string(kMaxTargetRowsOrCols) + "] (is " +
+                                 std::to_string(value) + ")");
+      }
+      *count = static_cast<int>(value);
+    }
+    target.grid.pitch_mm = ReadLength(root, "pitch_mm", path);
     if (!root["circle_radius_mm"].empty()) {
-      target.grid.circle_radius_mm = ReadNumber(root, "circle_radius_mm", path);
+      target.grid.circle_radius_mm = ReadLength(root, "circle_radius_mm", path);
     } else {
       target.grid.circle_radius_mm = 0.28 * target.grid.pitch_mm;
     }
@@ -128,6 +153,11 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
       placement.left_image = ResolveImage(height, "left", dir, path, index);
       placement.right_image = ResolveImage(height, "right", dir, path, index);
       if (!height["world_from_target"].empty()) {
+        if (const std::string problem = CheckMatrixNode(height["world_from_target"], 16);
+            !problem.empty()) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " world_from_target " + problem);
+        }
         cv::Mat matrix;
         height["world_from_target"] >> matrix;
         if (matrix.total() != 16) {
@@ -143,19 +173,31 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
           throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
                                    " needs 'origin_mm' (and 'yaw_deg') or 'world_from_target'");
         }
+        if (const std::string problem = CheckMatrixNode(height["origin_mm"], 3); !problem.empty()) {
+          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                   " origin_mm " + problem);
+        }
         height["origin_mm"] >> origin;
         if (origin.size() != 3) {
           throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
                                    " origin_mm must have 3 numbers");
+        }
+        for (double coordinate : origin) {
+          if (!std::isfinite(coordinate) || std::abs(coordinate) > TextInputLimits{}.max_abs_mm) {
+            throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
+                                     " origin_mm has a non-finite value or one beyond +-1e7 mm");
+          }
         }
         const double yaw_deg =
             height["yaw_deg"].empty() ? 0.0 : ReadNumber(height, "yaw_deg", path);
         placement.world_from_target =
             WorldFromTargetFlat(Eigen::Vector3d(origin[0], origin[1], origin[2]), yaw_deg);
       }
-      if (!placement.world_from_target.allFinite()) {
+      if (!placement.world_from_target.allFinite() ||
+          placement.world_from_target.block<3, 1>(0, 3).cwiseAbs().maxCoeff() >
+              TextInputLimits{}.max_abs_mm) {
         throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                 " pose has a non-finite value");
+                                 " pose has a non-finite value or a translation beyond +-1e7 mm");
       }
       target.placements.push_back(placement);
     }
@@ -473,8 +515,7 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
     world[v] = target.grid.PointsInWorld(placement.world_from_target);
     for (int camera = 0; camera < 2; ++camera) {
       const std::string& path = camera == 0 ? placement.left_image : placement.right_image;
-      const cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
-      if (image.empty()) throw std::runtime_error("cannot read image '" + path + "'");
+      const cv::Mat image = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
       if (v == 0) {
         first_images[camera] = image;
         if (camera == 0) image_width = image.cols, image_height = image.rows;

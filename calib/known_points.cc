@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "calib/circle_calibration.h"
+#include "calib/input_limits.h"
 
 namespace hnnstereo::calib {
 
@@ -35,6 +36,13 @@ KnownPoints ParseKnownPoints(const std::string& text, const std::string& source)
                                  std::to_string(line_number) + ": non-finite value '" + token +
                                  "'");
       }
+      // 1e7 (mm for X Y Z, px for u v) is beyond any cell or image; larger values would square
+      // to ~1e28 in the DLT's normal equations and swamp everything else.
+      if (std::abs(value) > TextInputLimits{}.max_abs_mm) {
+        throw std::runtime_error("points file '" + source + "' line " +
+                                 std::to_string(line_number) + ": '" + token +
+                                 "' is beyond +-1e7 (mm or px)");
+      }
       values.push_back(value);
     }
     if (values.empty()) continue;
@@ -50,14 +58,7 @@ KnownPoints ParseKnownPoints(const std::string& text, const std::string& source)
 }
 
 KnownPoints ReadKnownPoints(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) {
-    throw std::runtime_error("points file '" + path + "' does not exist");
-  }
-  std::ifstream file(path);
-  if (!file) throw std::runtime_error("points file '" + path + "' cannot be read");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return ParseKnownPoints(buffer.str(), path);
+  return ParseKnownPoints(ReadTextFileWithin(path, "points file"), path);
 }
 
 CalibrationResult CalibrateFromKnownPoints(const std::string& left_points_path,

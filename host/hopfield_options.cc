@@ -25,14 +25,21 @@ constexpr std::array<std::pair<InitialState, std::string_view>, 7> kInitialState
     {InitialState::kCorrelation, "correlation"},
 }};
 
+// Largest energy coefficient, gain or time step accepted. The defaults are of order 0.01-10; a
+// value of 1e308 (a typo, a hostile --config) passed "finite" and overflowed the energy to
+// infinity, so that the report said energy null and no neuron was decided. 1e6 still leaves the
+// float sums over ~10^7 connections far from overflow.
+constexpr double kMaxCoefficient = 1e6;
+
 std::string Positive(const char* name, double value) {
-  if (std::isfinite(value) && value > 0.0) return {};
-  return std::string(name) + " must be a positive number (got " + std::to_string(value) + ")";
+  if (std::isfinite(value) && value > 0.0 && value <= kMaxCoefficient) return {};
+  return std::string(name) + " must be a positive number <= 1e6 (got " + std::to_string(value) +
+         ")";
 }
 
 std::string NonNegative(const char* name, double value) {
-  if (std::isfinite(value) && value >= 0.0) return {};
-  return std::string(name) + " must be >= 0 (got " + std::to_string(value) + ")";
+  if (std::isfinite(value) && value >= 0.0 && value <= kMaxCoefficient) return {};
+  return std::string(name) + " must be >= 0 and <= 1e6 (got " + std::to_string(value) + ")";
 }
 
 }  // namespace

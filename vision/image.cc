@@ -72,32 +72,8 @@ cv::Mat ToGrey8(const cv::Mat& single) {
 
 }  // namespace
 
-LoadedImage LoadImage(const std::string& path) {
-  std::error_code error;
-  if (!std::filesystem::exists(path, error)) {
-    throw std::runtime_error("image '" + path + "' does not exist");
-  }
-  if (std::filesystem::is_directory(path, error)) {
-    throw std::runtime_error("image '" + path + "' is a directory, not an image file");
-  }
-  if (std::filesystem::is_regular_file(path, error) &&
-      std::filesystem::file_size(path, error) == 0) {
-    throw std::runtime_error("image '" + path + "' is empty (0 bytes)");
-  }
-
-  cv::Mat original;
-  try {
-    original = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception&) {
-    original.release();  // a codec that throws on a corrupt file: same answer as unreadable
-  }
-  if (original.empty()) {
-    throw std::runtime_error("image '" + path +
-                             "' cannot be read (not an image or unsupported format)");
-  }
-  if (original.rows == 0 || original.cols == 0) {
-    throw std::runtime_error("image '" + path + "' is empty (" + SizeText(original) + ")");
-  }
+LoadedImage LoadImage(const std::string& path, const ImageLimits& limits) {
+  const cv::Mat original = calib::ReadImageFileWithin(path, cv::IMREAD_UNCHANGED, limits);
 
   LoadedImage image;
   image.path = path;

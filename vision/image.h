@@ -4,6 +4,8 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "calib/input_limits.h"
+
 namespace hnnstereo::vision {
 
 /// A loaded image: the original pixels and a grey working copy.
@@ -15,9 +17,13 @@ struct LoadedImage {
   int channels = 1;
 };
 
+/// The limits an image file is held to (file size, header size; defaults documented there).
+using ImageLimits = calib::ImageLimits;
+
 /// Loads an image file (PNG, PGM/PPM, JPEG, TIFF...; 8 or 16 bit; grey or colour).
-/// Throws std::runtime_error with a one-line reason: missing file, unreadable or empty image.
-LoadedImage LoadImage(const std::string& path);
+/// Throws std::runtime_error with a one-line reason: missing file, unreadable or empty image, or
+/// outside `limits` (checked on the file size and the header before decoding).
+LoadedImage LoadImage(const std::string& path, const ImageLimits& limits = {});
 
 /// The CV_8U grey working copy of an image already in memory (8/16-bit, grey, grey + alpha, BGR
 /// or BGRA), exactly as LoadImage makes `grey`. Throws std::invalid_argument for an empty image.

@@ -90,8 +90,8 @@ std::optional<std::pair<MiddleburyLayout, LayoutFiles>> FindLayoutFiles(const fs
 
 // 8-bit PGM/PNG ground truth: value / scale, 0 = unknown.
 cv::Mat ReadScaledDisparity(const std::string& path, double scale) {
-  const cv::Mat stored = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
-  if (stored.empty()) throw std::runtime_error("cannot read ground truth " + path);
+  const cv::Mat stored =
+      calib::ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
   cv::Mat values;
   stored.convertTo(values, CV_32F);
   cv::Mat disparity(values.size(), CV_32F);
@@ -109,9 +109,22 @@ cv::Mat ReadScaledDisparity(const std::string& path, double scale) {
 cv::Mat ReadPfmDisparity(const std::string& path) {
   cv::Mat disparity = ReadPfm(path);
   if (disparity.type() != CV_32F) throw std::runtime_error("ground truth " + path + " is not a grey PFM");
-  disparity.forEach<float>([](float& d, const int*) {
-    if (!std::isfinite(d)) d = kUnknown;
-  });
+  // A finite disparity outside [0, width] cannot be meant; it would also set the search range
+  // (max_disparity) of the whole evaluation.
+  const float max_disparity = static_cast<float>(disparity.cols);
+  for (int y = 0; y < disparity.rows; ++y) {
+    float* row = disparity.ptr<float>(y);
+    for (int x = 0; x < disparity.cols; ++x) {
+      if (!std::isfinite(row[x])) {
+        row[x] = kUnknown;
+      } else if (row[x] < 0.0f || row[x] > max_disparity) {
+        throw std::runtime_error("ground truth " + path + " has a disparity of " +
+                                 std::to_string(row[x]) + " at (" + std::to_string(x) + ", " +
+                                 std::to_string(y) + "), outside [0, " +
+                                 std::to_string(disparity.cols) + "] (the image width)");
+      }
+    }
+  }
   return disparity;
 }
 
@@ -234,7 +247,7 @@ MiddleburyPair LoadMiddlebury(const std::string& directory) {
 
   const cv::Mat known = pair.disparity == pair.disparity;  // false at NaN
   if (!files.mask.empty()) {
-    const cv::Mat mask = cv::imread(files.mask, cv::IMREAD_GRAYSCALE);
+    const cv::Mat mask = calib::ReadImageFileWithin(files.mask, cv::IMREAD_GRAYSCALE);
     if (mask.empty() || mask.size() != pair.disparity.size()) {
       throw std::runtime_error("cannot use occlusion mask " + files.mask);
     }
@@ -282,6 +295,21 @@ cv::Mat ReadPfm(const std::string& path) {
   }
   in.get();  // the single whitespace byte after the scale
   const int channels = magic == "PF" ? 3 : 1;
+  // The header alone must not decide how much memory is taken: a 100000 x 100000 header on a
+  // tiny file would ask for 40 GB. The file has to hold every pixel it claims.
+  const std::uintmax_t needed = static_cast<std::uintmax_t>(width) *
+                                static_cast<std::uintmax_t>(height) *
+                                static_cast<std::uintmax_t>(channels) * 4u;
+  const std::streamoff data_start = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff file_end = in.tellg();
+  in.seekg(data_start);
+  if (!in || data_start < 0 || file_end < data_start ||
+      static_cast<std::uintmax_t>(file_end - data_start) < needed) {
+    throw std::runtime_error("PFM " + path + " is truncated: its header says " +
+                             std::to_string(width) + "x" + std::to_string(height) + " (" +
+                             std::to_string(needed) + " bytes of data)");
+  }
   cv::Mat image(height, width, CV_MAKETYPE(CV_32F, channels));
   const bool little_endian_file = scale < 0.0;
   const std::uint32_t probe = 1;

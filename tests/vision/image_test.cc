@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 #include <opencv2/imgcodecs.hpp>
@@ -109,14 +111,49 @@ TEST_F(LoadImageTest, ColourConvertedToGrey) {
 }
 
 TEST_F(LoadImageTest, SixteenBitColour) {
-  cv::Mat colour(10, 10, CV_16UC3, cv::Scalar(1000, 2000, 3000));
-  colour(cv::Rect(0, 0, 5, 10)).setTo(cv::Scalar(40000, 40000, 40000));
+  // 16 x 16: the smallest image LoadImage takes (ImageLimits::min_side_px).
+  cv::Mat colour(16, 16, CV_16UC3, cv::Scalar(1000, 2000, 3000));
+  colour(cv::Rect(0, 0, 5, 16)).setTo(cv::Scalar(40000, 40000, 40000));
   const LoadedImage image = LoadImage(Write("deep_colour.png", colour));
   EXPECT_EQ(image.bit_depth, 16);
   EXPECT_EQ(image.channels, 3);
   ASSERT_EQ(image.grey.type(), CV_8UC1);
   EXPECT_EQ(image.grey.at<unsigned char>(0, 0), 255);
   EXPECT_EQ(image.grey.at<unsigned char>(0, 9), 0);
+}
+
+TEST_F(LoadImageTest, LimitsAreCheckedOnTheHeaderBeforeDecoding) {
+  const std::string path = Write("ramp.png", Ramp8(40, 60));
+  ImageLimits limits;
+  limits.max_side_px = 50;
+  ExpectRuntimeError([&] { LoadImage(path, limits); }, "is 60x40 pixels by its header, beyond");
+  limits = ImageLimits{};
+  limits.max_pixels = 60 * 40 - 1;
+  ExpectRuntimeError([&] { LoadImage(path, limits); }, "beyond the limits");
+  limits = ImageLimits{};
+  limits.min_side_px = 41;
+  ExpectRuntimeError([&] { LoadImage(path, limits); }, "smaller than the minimum of 41");
+  limits = ImageLimits{};
+  limits.max_file_bytes = 10;
+  ExpectRuntimeError([&] { LoadImage(path, limits); }, "more than the limit of 10");
+  EXPECT_EQ(LoadImage(path).grey.size(), cv::Size(60, 40));
+}
+
+TEST(ImageHeaderSize, ReadsEachFormatsHeaderWithoutDecoding) {
+  const cv::Mat image = Ramp8(21, 34);
+  for (const std::string extension : {".png", ".jpg", ".bmp", ".pgm", ".tif"}) {
+    std::vector<unsigned char> encoded;
+    ASSERT_TRUE(cv::imencode(extension, image, encoded)) << extension;
+    int width = 0, height = 0;
+    ASSERT_TRUE(calib::ReadImageHeaderSize(encoded, &width, &height)) << extension;
+    EXPECT_EQ(width, 34) << extension;
+    EXPECT_EQ(height, 21) << extension;
+    // Cut anywhere in the header: no crash, no read past the end (ASan checks that).
+    for (std::size_t cut = 0; cut < std::min<std::size_t>(encoded.size(), 64); ++cut) {
+      const std::vector<unsigned char> head(encoded.begin(), encoded.begin() + static_cast<long>(cut));
+      calib::ReadImageHeaderSize(head, &width, &height);
+    }
+  }
 }
 
 TEST_F(LoadImageTest, MissingFileSaysSo) {
