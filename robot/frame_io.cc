@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "calib/atomic_file.h"
+#include "calib/input_limits.h"
 
 namespace hnnstereo::robot {
 
@@ -33,9 +34,17 @@ RobotFrame LoadRobotFrame(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) {
     throw std::invalid_argument("frame file '" + path + "' does not exist");
   }
+  // Read within the text-file limits first (a FRAME.yml is a few hundred bytes), then parse
+  // from memory.
+  std::string text;
+  try {
+    text = calib::ReadTextFileWithin(path, "frame file");
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
   cv::FileStorage storage;
   try {
-    storage.open(path, cv::FileStorage::READ);
+    storage.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
   } catch (const cv::Exception&) {
     throw std::invalid_argument("frame file '" + path + "' is not an OpenCV YAML/XML file");
   }
@@ -44,6 +53,10 @@ RobotFrame LoadRobotFrame(const std::string& path) {
   }
   auto read = [&](const char* key, int rows, int cols) {
     cv::Mat m;
+    // A matrix header claiming huge sizes would be allocated before its data is read.
+    if (const std::string problem = calib::CheckMatrixNode(storage[key], 16); !problem.empty()) {
+      throw std::invalid_argument("frame file '" + path + "': '" + key + "': " + problem);
+    }
     try {
       storage[key] >> m;
     } catch (const cv::Exception&) {

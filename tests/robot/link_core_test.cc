@@ -118,6 +118,16 @@ TEST_F(FrameFile, RoundTripsAndRefusesBrokenFrames) {
   EXPECT_THROW(LoadRobotFrame(Path("missing.yml")), std::invalid_argument);
   std::ofstream(Path("garbage.yml")) << "not: [valid\n";
   EXPECT_THROW(LoadRobotFrame(Path("garbage.yml")), std::invalid_argument);
+  // A small file whose matrix header claims 100000 x 100000 doubles (80 GB, allocated by OpenCV
+  // before reading the data): refused from the header.
+  std::ofstream(Path("huge.yml")) << "%YAML:1.0\nrobot_from_world: !!opencv-matrix\n   rows: 100000\n"
+                                     "   cols: 100000\n   dt: d\n   data: [ 1., 0. ]\n";
+  try {
+    LoadRobotFrame(Path("huge.yml"));
+    FAIL() << "a 100000 x 100000 matrix header was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("robot_from_world"), std::string::npos) << e.what();
+  }
   // A scaled "rotation" is not rigid.
   RobotFrame scaled = frame;
   scaled.robot_from_world.linear() *= 2.0;
