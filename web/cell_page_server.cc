@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <atomic>
 #include <charconv>
 #include <chrono>
@@ -211,6 +213,13 @@ struct CellPageServer::Impl {
     server.set_socket_options([this](socket_t socket) {
       const int yes = 1;  // httplib's default options, which this callback replaces
       setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+#ifdef TCP_DEFER_ACCEPT
+      // A connection reaches httplib (and takes one of its worker threads) only once it has
+      // sent data: clients that connect and stay silent no longer queue up in front of
+      // everyone else (Linux, tcp(7)).
+      const int defer_s = 5;
+      setsockopt(socket, IPPROTO_TCP, TCP_DEFER_ACCEPT, &defer_s, sizeof defer_s);
+#endif
       listening_socket = socket;
     });
     server.set_default_headers(
