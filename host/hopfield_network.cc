@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "host/hopfield_energy.h"
+#include "host/point_grid.h"
 
 namespace hnnstereo::hnn {
 namespace {
@@ -50,52 +51,21 @@ void FindFeatureNeighbours(const MatchingProblem& problem, double radius,
   // without a sort (the layout's order; on all of Teddy's 21,664 features this is ~5x faster
   // than hashing the cells and sorting each list).
   if (n == 0) return;
-  float min_x = problem.left_points[0].x(), max_x = min_x;
-  float min_y = problem.left_points[0].y(), max_y = min_y;
-  for (const auto& p : problem.left_points) {
-    min_x = std::min(min_x, p.x()), max_x = std::max(max_x, p.x());
-    min_y = std::min(min_y, p.y()), max_y = std::max(max_y, p.y());
-  }
-  double cell = std::max(radius, 1.0);
-  // Sparse points over a huge extent: coarser cells keep the grid within a few cells a feature.
-  const double extent_x = static_cast<double>(max_x) - min_x, extent_y = static_cast<double>(max_y) - min_y;
-  const double max_cells = 4.0 * n + 4096.0;
-  if ((extent_x / cell + 1.0) * (extent_y / cell + 1.0) > max_cells) {
-    cell = std::max(cell, std::sqrt((extent_x + 1.0) * (extent_y + 1.0) / (max_cells / 4.0)));
-  }
-  const int nx = static_cast<int>(extent_x / cell) + 1, ny = static_cast<int>(extent_y / cell) + 1;
-  auto cell_x = [&](float x) { return std::min(nx - 1, static_cast<int>((x - min_x) / cell)); };
-  auto cell_y = [&](float y) { return std::min(ny - 1, static_cast<int>((y - min_y) / cell)); };
-  const auto n_cells = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-  std::vector<std::int32_t> cell_start(n_cells + 1, 0), cell_items(static_cast<std::size_t>(n));
-  std::vector<std::int32_t> cell_of(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    const auto& p = problem.left_points[static_cast<std::size_t>(i)];
-    cell_of[static_cast<std::size_t>(i)] = cell_y(p.y()) * nx + cell_x(p.x());
-    ++cell_start[static_cast<std::size_t>(cell_of[static_cast<std::size_t>(i)]) + 1];
-  }
-  for (std::size_t c = 0; c < n_cells; ++c) cell_start[c + 1] += cell_start[c];
-  {
-    std::vector<std::int32_t> fill(cell_start.begin(), cell_start.end() - 1);
-    for (int i = 0; i < n; ++i) {
-      cell_items[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[static_cast<std::size_t>(i)])]++)] = i;
-    }
-  }
+  const PointGrid grid(problem.left_points, radius);
   const double radius2 = radius * radius;
   // Calls visit(i) for every feature i within the radius of feature j (j itself included).
   // About half the features of the 3 x 3 cells are within: the candidates are first compacted
   // without a branch (a data-dependent branch here mispredicts half the time), then visited.
   auto for_each_within = [&](int j, std::vector<std::int32_t>& within, auto&& visit) {
     const auto& p = problem.left_points[static_cast<std::size_t>(j)];
-    const int cx = cell_x(p.x()), cy = cell_y(p.y());
+    const int cx = grid.CellX(p.x()), cy = grid.CellY(p.y());
     std::size_t m = 0;
-    for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, ny - 1); ++y) {
-      const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(nx);
-      const std::size_t first = cell_start[row + static_cast<std::size_t>(std::max(cx - 1, 0))];
-      const std::size_t last = cell_start[row + static_cast<std::size_t>(std::min(cx + 1, nx - 1)) + 1];
+    for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, grid.ny - 1); ++y) {
+      const std::size_t first = grid.RowBegin(y, std::max(cx - 1, 0));
+      const std::size_t last = grid.RowEnd(y, std::min(cx + 1, grid.nx - 1));
       if (within.size() < m + (last - first)) within.resize(2 * (m + (last - first)));
       for (std::size_t t = first; t < last; ++t) {
-        const int i = cell_items[t];
+        const int i = grid.items[t];
         within[m] = i;
         m += (problem.left_points[static_cast<std::size_t>(i)] - p).cast<double>().squaredNorm() <=
              radius2;

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "calib/epipolar.h"
+#include "host/point_grid.h"
 #include <opencv2/core/utility.hpp>
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -119,42 +120,9 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   // tested: the all-pairs gating was most of `pick`'s match time).
   const bool band_search = options.kind == hnn::NetworkKind::kFeatureVsFeature && !options.rectified &&
                            !options.dense && !right_points.empty();
-  struct Grid {
-    float x0 = 0, y0 = 0, cell = 16;
-    int nx = 1, ny = 1;
-    std::vector<std::int32_t> start, items;
-  } grid;
-  if (band_search) {
-    float x1 = right_points[0].x(), y1 = right_points[0].y();
-    grid.x0 = x1, grid.y0 = y1;
-    for (const auto& r : right_points) {
-      grid.x0 = std::min(grid.x0, r.x()), grid.y0 = std::min(grid.y0, r.y());
-      x1 = std::max(x1, r.x()), y1 = std::max(y1, r.y());
-    }
-    const double n_right = static_cast<double>(right_points.size());
-    grid.cell = static_cast<float>(std::max({16.0, 4.0 * options.max_epipolar_distance_px,
-                                             std::sqrt((static_cast<double>(x1) - grid.x0 + 1.0) *
-                                                       (static_cast<double>(y1) - grid.y0 + 1.0) /
-                                                       (4.0 * n_right + 4096.0))}));
-    grid.nx = static_cast<int>((x1 - grid.x0) / grid.cell) + 1;
-    grid.ny = static_cast<int>((y1 - grid.y0) / grid.cell) + 1;
-    const auto cells = static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny);
-    grid.start.assign(cells + 1, 0);
-    std::vector<std::int32_t> cell_of(right_points.size());
-    for (std::size_t k = 0; k < right_points.size(); ++k) {
-      const int cx = std::min(grid.nx - 1, static_cast<int>((right_points[k].x() - grid.x0) / grid.cell));
-      const int cy = std::min(grid.ny - 1, static_cast<int>((right_points[k].y() - grid.y0) / grid.cell));
-      cell_of[k] = cy * grid.nx + cx;
-      ++grid.start[static_cast<std::size_t>(cell_of[k]) + 1];
-    }
-    for (std::size_t c = 0; c < cells; ++c) grid.start[c + 1] += grid.start[c];
-    grid.items.resize(right_points.size());
-    std::vector<std::int32_t> fill(grid.start.begin(), grid.start.end() - 1);
-    for (std::size_t k = 0; k < right_points.size(); ++k) {
-      grid.items[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[k])]++)] =
-          static_cast<std::int32_t>(k);
-    }
-  }
+  // Cells of at least 16 px and 4 band widths.
+  const hnn::PointGrid grid(band_search ? right_points : std::vector<Eigen::Vector2f>{},
+                            std::max(16.0, 4.0 * options.max_epipolar_distance_px));
   // The right features in the cells the band of `line` crosses, sorted by index.
   auto band_candidates = [&](const Eigen::Vector3d& line, std::vector<int>& found) {
     found.clear();
@@ -167,17 +135,21 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
     const int n_slices = by_column ? grid.nx : grid.ny, n_other = by_column ? grid.ny : grid.nx;
     const double origin = by_column ? grid.x0 : grid.y0, other_origin = by_column ? grid.y0 : grid.x0;
     for (int s = 0; s < n_slices; ++s) {
-      const double u0 = origin + s * static_cast<double>(grid.cell), u1 = u0 + grid.cell;
+      const double u0 = origin + s * grid.cell, u1 = u0 + grid.cell;
       const double v0 = -(across * u0 + c) / along, v1 = -(across * u1 + c) / along;
       const double low = (std::min(v0, v1) - half - other_origin) / grid.cell;
       const double high = (std::max(v0, v1) + half - other_origin) / grid.cell;
       if (high < 0.0 || low > n_other - 1.0 + 1.0) continue;
       const int first = std::max(0, static_cast<int>(std::floor(low)));
       const int last = std::min(n_other - 1, static_cast<int>(std::floor(high)));
-      for (int o = first; o <= last; ++o) {
-        const int cell = by_column ? o * grid.nx + s : s * grid.nx + o;
-        found.insert(found.end(), grid.items.begin() + grid.start[static_cast<std::size_t>(cell)],
-                     grid.items.begin() + grid.start[static_cast<std::size_t>(cell) + 1]);
+      if (by_column) {
+        for (int o = first; o <= last; ++o) {
+          found.insert(found.end(), grid.items.begin() + static_cast<std::ptrdiff_t>(grid.RowBegin(o, s)),
+                       grid.items.begin() + static_cast<std::ptrdiff_t>(grid.RowEnd(o, s)));
+        }
+      } else {  // cells first..last of row s: one range
+        found.insert(found.end(), grid.items.begin() + static_cast<std::ptrdiff_t>(grid.RowBegin(s, first)),
+                     grid.items.begin() + static_cast<std::ptrdiff_t>(grid.RowEnd(s, last)));
       }
     }
     std::sort(found.begin(), found.end());
