@@ -4,7 +4,8 @@ how well it ranks, on Middlebury pairs with ground truth.
 
 For every pair it runs `hnnstereo match` (rectified, the pair's disparity range, the default
 preset) with --report, reads the per-match features of the report (potential_margin,
-correlation, correlation_margin), labels each match correct when its disparity is within 1 px of
+correlation, correlation_margin, and per radius r of 3, 6, 12 px neighbours_r and
+agreement_r = agreeing_r / neighbours_r), labels each match correct when its disparity is within 1 px of
 the ground truth (rounded, as `eval` scores), and fits a logistic regression
 P(correct) = sigmoid(b + w . features) by Newton's method (IRLS), pooled over the pairs.
 
@@ -26,7 +27,23 @@ import tempfile
 import numpy as np
 from PIL import Image
 
-FEATURES = ["potential_margin"]  # the fitted default; add correlation, correlation_margin to compare
+# The fitted default (ConfidenceOptions); --features picks a subset to compare.
+RADII = (3, 6, 12)
+FEATURES = (["potential_margin", "correlation", "correlation_margin"] +
+            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII])
+
+
+def feature_columns(rows, col, names):
+    """The model's inputs from the report's columns (agreement_r = agreeing_r / neighbours_r)."""
+    out = []
+    for name in names:
+        if name.startswith("agreement_"):
+            r = name.split("_")[1]
+            n = rows[:, col["neighbours_" + r]]
+            out.append(np.where(n > 0, rows[:, col["agreeing_" + r]] / np.maximum(n, 1), 0.0))
+        else:
+            out.append(rows[:, col[name]])
+    return np.stack(out, axis=1)
 
 
 def read_pfm(path):
@@ -103,7 +120,9 @@ def sigmoid(z):
 
 def design(X, cap):
     X = X.copy()
-    X[:, 0] = np.minimum(X[:, 0], cap)
+    if "potential_margin" in FEATURES:
+        k = FEATURES.index("potential_margin")
+        X[:, k] = np.minimum(X[:, k], cap)
     return np.hstack([np.ones((X.shape[0], 1)), X])
 
 
@@ -159,14 +178,15 @@ def main():
         known = np.isfinite(truth)
         disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
         correct = (np.abs(disparity - np.round(truth)) <= 1.0)[known].astype(np.float64)
-        X = rows[known][:, [col[f] for f in FEATURES]]
+        X = feature_columns(rows[known], col, FEATURES)
         pairs[name] = (X, correct, rows[known][:, col["confidence"]])
     names = list(pairs)
     X_all = np.vstack([pairs[n][0] for n in names])
     y_all = np.concatenate([pairs[n][1] for n in names])
     w = fit_logistic(design(X_all, args.cap), y_all)
-    print("fitted on all pairs (paste into ConfidenceOptions):")
-    print(f"  bias = {w[0]:.4f}; " + "; ".join(f"w_{f} = {w[i + 1]:.4f}" for i, f in enumerate(FEATURES)))
+    print("fitted on all pairs (paste into ConfidenceOptions; agreement_r / neighbours_r go to")
+    print("w_agreement / w_neighbours in the order of the radii 3, 6, 12):")
+    print(f"  bias = {w[0]:.6g}; " + "; ".join(f"w_{f} = {w[i + 1]:.6g}" for i, f in enumerate(FEATURES)))
     print("\n| pair | matches | error all % | top 25 % | top 50 % | top 75 % | top 25 % (current build) |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     pooled = {"c": [], "y": [], "b": []}

@@ -78,15 +78,21 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                 {"w_potential_margin", c.w_potential_margin},
                                 {"w_correlation", c.w_correlation},
                                 {"w_correlation_margin", c.w_correlation_margin},
+                                {"w_agreement", c.w_agreement},
+                                {"w_neighbours", c.w_neighbours},
+                                {"agreement_radii_px", kAgreementRadiiPx},
                                 {"potential_margin_cap", c.potential_margin_cap}};
   // Per-match output: one row per match, columns named once (compact for ~10^5 matches).
   nlohmann::json rows = nlohmann::json::array();
   for (const StereoMatch& m : report.matches) {
     rows.push_back({m.left.x(), m.left.y(), m.right.x(), m.right.y(), m.activation, m.confidence,
-                    m.potential_margin, m.correlation, m.correlation_margin});
+                    m.potential_margin, m.correlation, m.correlation_margin, m.neighbours[0],
+                    m.agreeing[0], m.neighbours[1], m.agreeing[1], m.neighbours[2], m.agreeing[2]});
   }
   json["matches"] = {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence",
-                                  "potential_margin", "correlation", "correlation_margin"}},
+                                  "potential_margin", "correlation", "correlation_margin",
+                                  "neighbours_3", "agreeing_3", "neighbours_6", "agreeing_6",
+                                  "neighbours_12", "agreeing_12"}},
                      {"rows", std::move(rows)}};
   return json;
 }

@@ -5,8 +5,11 @@
 #include <cmath>
 #include <stdexcept>
 
+#include <opencv2/core/utility.hpp>
+
 #include "host/cpu_engines.h"
 #include "host/opencl_engine.h"
+#include "host/point_grid.h"
 #include "vision/correlation.h"
 
 namespace hnnstereo::vision {
@@ -15,6 +18,53 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// Fills StereoMatch::neighbours / agreeing (ConfidenceOptions) for all decoded matches: a grid
+// over the left points with cells of the largest radius, each match scanning the 3 x 3 cells
+// around it. The points and displacements are copied in grid order, so a scan reads contiguous
+// memory, and the counts are branch-free.
+void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
+  if (matches.empty()) return;
+  std::vector<Eigen::Vector2f> points(matches.size());
+  for (std::size_t i = 0; i < matches.size(); ++i) points[i] = matches[i].left;
+  constexpr float kRadius = kAgreementRadiiPx.back();
+  const hnn::PointGrid grid(points, kRadius);
+  const std::size_t n = grid.items.size();
+  std::vector<float> px(n), py(n), sx(n), sy(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const StereoMatch& m = matches[static_cast<std::size_t>(grid.items[k])];
+    px[k] = m.left.x(), py[k] = m.left.y();
+    sx[k] = m.right.x() - m.left.x(), sy[k] = m.right.y() - m.left.y();
+  }
+  cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
+    for (int self = range.start; self < range.end; ++self) {
+      const auto s = static_cast<std::size_t>(self);
+      const float x = px[s], y = py[s], shift_x = sx[s], shift_y = sy[s];
+      std::array<std::int32_t, 3> within = {0, 0, 0}, agreeing = {0, 0, 0};
+      const int cx0 = grid.CellX(x - kRadius), cx1 = grid.CellX(x + kRadius);
+      const int cy0 = grid.CellY(y - kRadius), cy1 = grid.CellY(y + kRadius);
+      for (int cy = cy0; cy <= cy1; ++cy) {
+        const std::size_t end = grid.RowEnd(cy, cx1);
+        for (std::size_t k = grid.RowBegin(cy, cx0); k < end; ++k) {
+          const float ex = px[k] - x, ey = py[k] - y;
+          const float d2 = ex * ex + ey * ey;
+          const float fx = sx[k] - shift_x, fy = sy[k] - shift_y;
+          const std::int32_t agrees = fx * fx + fy * fy <= 1.0f ? 1 : 0;
+          for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
+            const std::int32_t in = d2 <= kAgreementRadiiPx[r] * kAgreementRadiiPx[r] ? 1 : 0;
+            within[r] += in;
+            agreeing[r] += in & agrees;
+          }
+        }
+      }
+      StereoMatch& m = matches[static_cast<std::size_t>(grid.items[s])];
+      for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
+        m.neighbours[r] = within[r] - 1;  // the scan counted the match itself (d2 = 0, agrees)
+        m.agreeing[r] = agreeing[r] - 1;
+      }
+    }
+  }, static_cast<double>(std::max<std::size_t>(1, n / 1024)));
 }
 
 }  // namespace
@@ -36,7 +86,8 @@ std::optional<hnn::EngineKind> ParseEngine(std::string_view name) {
 }
 
 std::string ConfidenceOptions::Check() const {
-  for (double v : {bias, w_potential_margin, w_correlation, w_correlation_margin}) {
+  for (double v : {bias, w_potential_margin, w_correlation, w_correlation_margin, w_agreement[0],
+                   w_agreement[1], w_agreement[2], w_neighbours[0], w_neighbours[1], w_neighbours[2]}) {
     if (!std::isfinite(v)) return "confidence weights must be finite";
   }
   if (!(potential_margin_cap > 0.0 && std::isfinite(potential_margin_cap))) {
@@ -47,9 +98,14 @@ std::string ConfidenceOptions::Check() const {
 
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options) {
   const double margin = std::min<double>(match.potential_margin, options.potential_margin_cap);
-  const double z = options.bias + options.w_potential_margin * margin +
-                   options.w_correlation * match.correlation +
-                   options.w_correlation_margin * match.correlation_margin;
+  double z = options.bias + options.w_potential_margin * margin +
+             options.w_correlation * match.correlation +
+             options.w_correlation_margin * match.correlation_margin;
+  for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
+    const double agreement =
+        match.neighbours[r] > 0 ? static_cast<double>(match.agreeing[r]) / match.neighbours[r] : 0.0;
+    z += options.w_agreement[r] * agreement + options.w_neighbours[r] * match.neighbours[r];
+  }
   return static_cast<float>(1.0 / (1.0 + std::exp(-z)));
 }
 
@@ -163,8 +219,15 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
     match.potential_margin = static_cast<float>(own_u - other_u);
     match.correlation = c.correlation;
     match.correlation_margin = c.correlation - other_correlation;
-    match.confidence = MatchConfidence(match, options.confidence);
-    if (match.confidence >= options.min_confidence) report.matches.push_back(match);
+    report.matches.push_back(match);
+  }
+  // The neighbourhood votes count every decoded winner, before any is dropped by confidence.
+  CountAgreeingNeighbours(report.matches);
+  for (StereoMatch& match : report.matches) match.confidence = MatchConfidence(match, options.confidence);
+  if (options.min_confidence > 0.0) {
+    std::erase_if(report.matches, [&](const StereoMatch& match) {
+      return match.confidence < options.min_confidence;
+    });
   }
   report.timing_ms.decode = MillisecondsSince(start);
   report.timing_ms.total = MillisecondsSince(total_start);

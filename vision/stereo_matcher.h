@@ -3,6 +3,8 @@
 // that `match`, `bench` and `eval` share; a drop-in fast matcher for the pick cell.
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -23,25 +25,33 @@ namespace hnnstereo::vision {
 std::string_view EngineName(hnn::EngineKind engine);
 std::optional<hnn::EngineKind> ParseEngine(std::string_view name);
 
+/// Radii (px, left image) of the neighbourhoods whose matches vote on a match's confidence:
+/// 3 and 6 px (the local surface) and 12 px (the network's support radius).
+inline constexpr std::array<float, 3> kAgreementRadiiPx = {3.0f, 6.0f, 12.0f};
+
 /// The per-match confidence (docs/accuracy.md, "Confidence"): a logistic model of what the
-/// settled network knows about each winner,
-///   confidence = 1 / (1 + exp(-(bias + w_potential_margin * min(potential_margin, cap)
-///                               + w_correlation * correlation
-///                               + w_correlation_margin * correlation_margin))),
-/// where potential_margin = u(winner) - u(best other neuron of its row): at equilibrium
-/// u = sum_b W_ab V_b + I_a, so this is the winner's lead in support from its neighbourhood (plus
-/// the row inhibition it exerts on the runner-up); correlation = the winner's ZNCC and
-/// correlation_margin = its ZNCC minus the best other candidate's of the row. Defaults: fitted by
-/// logistic regression (correct = within 1 px of the ground truth) on the five shared Middlebury
-/// pairs with hnn-default (scripts/fit_confidence.py). The fit keeps the potential margin alone:
-/// adding the ZNCC terms made the top of the ranking worse (high-ZNCC matches on repetitive
-/// texture are the confident mistakes the network's support catches). Leave-one-pair-out, the
-/// top 25 % by confidence were 0.6 % wrong against 7.3 % for all matches.
+/// settled network and its neighbouring winners know about each winner,
+///   confidence = 1 / (1 + exp(-z)),
+///   z = bias + w_potential_margin * min(potential_margin, cap)
+///     + w_correlation * correlation + w_correlation_margin * correlation_margin
+///     + sum_r ( w_agreement[r] * agreement_r + w_neighbours[r] * neighbours_r ),
+/// where potential_margin = u(winner) - u(best other neuron of its row) (at equilibrium
+/// u = sum_b W_ab V_b + I_a: the winner's lead in support over its runner-up);
+/// correlation = the winner's ZNCC, correlation_margin = its ZNCC minus the best other
+/// candidate's of the row; for r in kAgreementRadiiPx, neighbours_r = the other decoded matches
+/// whose left point lies within r px, agreement_r = the share of them whose displacement
+/// (right - left point) is within 1 px of this match's (0 with no neighbour): a wrong winner is
+/// one its surface does not back, and dense, agreeing neighbourhoods are textured surfaces the
+/// network resolved. Defaults: fitted by logistic regression (correct = within 1 px of the
+/// ground truth) on the five shared Middlebury pairs with hnn-default
+/// (scripts/fit_confidence.py; figures in docs/accuracy.md).
 struct ConfidenceOptions {
-  double bias = 0.8919;
-  double w_potential_margin = 0.0062;
-  double w_correlation = 0.0;
-  double w_correlation_margin = 0.0;
+  double bias = -7.66342;
+  double w_potential_margin = 0.000297355;
+  double w_correlation = 4.07631;
+  double w_correlation_margin = 0.420384;
+  std::array<double, 3> w_agreement = {0.198272, 0.285758, 4.14635};        ///< per kAgreementRadiiPx
+  std::array<double, 3> w_neighbours = {0.00575417, 0.00249759, 0.0256681};  ///< per kAgreementRadiiPx
   double potential_margin_cap = 1e4;  ///< clamps absurd margins (none seen above ~1,500)
   std::string Check() const;
 };
@@ -74,9 +84,13 @@ struct StereoMatch {
   float potential_margin = 0.0f;    ///< u(winner) - u(best other neuron of its row)
   float correlation = 0.0f;         ///< the winner's ZNCC
   float correlation_margin = 0.0f;  ///< its ZNCC - the best other candidate's of the row
+  /// Per kAgreementRadiiPx: other decoded matches within r px (left image), and how many of them
+  /// have a displacement within 1 px of this one's (ConfidenceOptions).
+  std::array<std::int32_t, 3> neighbours = {0, 0, 0};
+  std::array<std::int32_t, 3> agreeing = {0, 0, 0};
 };
 
-/// The confidence of `match` from its potential_margin, correlation and correlation_margin.
+/// The confidence of `match` from its potential_margin, correlations and neighbourhood counts.
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);
 
 struct TimingMs {
