@@ -205,6 +205,14 @@ def main():
     print(f"| pooled (leave-one-pair-out) | {len(y)} | {100 * (1 - y.mean()):.1f} | "
           f"{top_error(c, y, 0.25):.1f} | {top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | "
           f"{top_error(b, y, 0.25):.1f} |")
+    # What a value of the built confidence means (the reports' own column, pooled): what
+    # --min-confidence T keeps and how often the kept matches are wrong.
+    print("\n| --min-confidence (current build) | matches kept % | error of kept % |")
+    print("|---:|---:|---:|")
+    for t in (0.5, 0.7, 0.9, 0.95, 0.99):
+        kept = b >= t
+        error = 100.0 * (1.0 - y[kept].mean()) if kept.any() else float("nan")
+        print(f"| {t:g} | {100.0 * kept.mean():.1f} | {error:.2f} |")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,8 @@ double MillisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
+}  // namespace
+
 // Fills StereoMatch::neighbours / agreeing (ConfidenceOptions) for all decoded matches: a grid
 // over the left points with cells of the largest radius, each match scanning the 3 x 3 cells
 // around it. The points and displacements are copied in grid order, so a scan reads contiguous
@@ -66,8 +68,6 @@ void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
     }
   }, static_cast<double>(std::max<std::size_t>(1, n / 1024)));
 }
-
-}  // namespace
 
 std::string_view EngineName(hnn::EngineKind engine) {
   switch (engine) {

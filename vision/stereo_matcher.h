@@ -93,6 +93,10 @@ struct StereoMatch {
 /// The confidence of `match` from its potential_margin, correlations and neighbourhood counts.
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);
 
+/// Fills `neighbours` and `agreeing` of every match (ConfidenceOptions) from the others' left
+/// points and displacements: a uniform grid of 12 px cells, so O(n) for evenly spread features.
+void CountAgreeingNeighbours(std::vector<StereoMatch>& matches);
+
 struct TimingMs {
   double features = 0, candidates = 0, network = 0, weights = 0, solve = 0, decode = 0, total = 0;
 };
