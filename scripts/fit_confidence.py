@@ -4,8 +4,8 @@ how well it ranks, on Middlebury pairs with ground truth.
 
 For every pair it runs `hnnstereo match` (rectified, the pair's disparity range, the default
 preset) with --report, reads the per-match features of the report (potential_margin,
-correlation, correlation_margin, and per radius r of 3, 6, 12 px neighbours_r and
-agreement_r = agreeing_r / neighbours_r), labels each match correct when its disparity is within 1 px of
+correlation, correlation_margin, surface_residual, and per radius r of 3, 6, 12, 24 px
+neighbours_r and agreement_r = agreeing_r / neighbours_r), labels each match correct when its disparity is within 1 px of
 the ground truth (rounded, as `eval` scores), and fits a logistic regression
 P(correct) = sigmoid(b + w . features) by Newton's method (IRLS), pooled over the pairs.
 
@@ -28,9 +28,10 @@ import numpy as np
 from PIL import Image
 
 # The fitted default (ConfidenceOptions); --features picks a subset to compare.
-RADII = (3, 6, 12)
+RADII = (3, 6, 12, 24)
 FEATURES = (["potential_margin", "correlation", "correlation_margin"] +
-            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII])
+            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII] +
+            ["surface_residual"])
 
 
 def feature_columns(rows, col, names):
@@ -185,7 +186,7 @@ def main():
     y_all = np.concatenate([pairs[n][1] for n in names])
     w = fit_logistic(design(X_all, args.cap), y_all)
     print("fitted on all pairs (paste into ConfidenceOptions; agreement_r / neighbours_r go to")
-    print("w_agreement / w_neighbours in the order of the radii 3, 6, 12):")
+    print("w_agreement / w_neighbours in the order of the radii 3, 6, 12, 24):")
     print(f"  bias = {w[0]:.6g}; " + "; ".join(f"w_{f} = {w[i + 1]:.6g}" for i, f in enumerate(FEATURES)))
     print("\n| pair | matches | error all % | top 25 % | top 50 % | top 75 % | top 25 % (current build) |")
     print("|---|---:|---:|---:|---:|---:|---:|")

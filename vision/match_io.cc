@@ -80,19 +80,24 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                 {"w_correlation_margin", c.w_correlation_margin},
                                 {"w_agreement", c.w_agreement},
                                 {"w_neighbours", c.w_neighbours},
+                                {"w_surface_residual", c.w_surface_residual},
                                 {"agreement_radii_px", kAgreementRadiiPx},
+                                {"agreement_slope", kAgreementSlope},
+                                {"surface_radius_px", kSurfaceRadiusPx},
                                 {"potential_margin_cap", c.potential_margin_cap}};
   // Per-match output: one row per match, columns named once (compact for ~10^5 matches).
   nlohmann::json rows = nlohmann::json::array();
   for (const StereoMatch& m : report.matches) {
     rows.push_back({m.left.x(), m.left.y(), m.right.x(), m.right.y(), m.activation, m.confidence,
                     m.potential_margin, m.correlation, m.correlation_margin, m.neighbours[0],
-                    m.agreeing[0], m.neighbours[1], m.agreeing[1], m.neighbours[2], m.agreeing[2]});
+                    m.agreeing[0], m.neighbours[1], m.agreeing[1], m.neighbours[2], m.agreeing[2],
+                    m.neighbours[3], m.agreeing[3], m.surface_residual});
   }
   json["matches"] = {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence",
                                   "potential_margin", "correlation", "correlation_margin",
                                   "neighbours_3", "agreeing_3", "neighbours_6", "agreeing_6",
-                                  "neighbours_12", "agreeing_12"}},
+                                  "neighbours_12", "agreeing_12", "neighbours_24", "agreeing_24",
+                                  "surface_residual"}},
                      {"rows", std::move(rows)}};
   return json;
 }

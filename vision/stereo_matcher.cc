@@ -5,11 +5,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include <opencv2/core/utility.hpp>
 
 #include "host/cpu_engines.h"
 #include "host/opencl_engine.h"
-#include "host/point_grid.h"
 #include "vision/correlation.h"
 
 namespace hnnstereo::vision {
@@ -21,53 +19,6 @@ double MillisecondsSince(Clock::time_point start) {
 }
 
 }  // namespace
-
-// Fills StereoMatch::neighbours / agreeing (ConfidenceOptions) for all decoded matches: a grid
-// over the left points with cells of the largest radius, each match scanning the 3 x 3 cells
-// around it. The points and displacements are copied in grid order, so a scan reads contiguous
-// memory, and the counts are branch-free.
-void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
-  if (matches.empty()) return;
-  std::vector<Eigen::Vector2f> points(matches.size());
-  for (std::size_t i = 0; i < matches.size(); ++i) points[i] = matches[i].left;
-  constexpr float kRadius = kAgreementRadiiPx.back();
-  const hnn::PointGrid grid(points, kRadius);
-  const std::size_t n = grid.items.size();
-  std::vector<float> px(n), py(n), sx(n), sy(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const StereoMatch& m = matches[static_cast<std::size_t>(grid.items[k])];
-    px[k] = m.left.x(), py[k] = m.left.y();
-    sx[k] = m.right.x() - m.left.x(), sy[k] = m.right.y() - m.left.y();
-  }
-  cv::parallel_for_(cv::Range(0, static_cast<int>(n)), [&](const cv::Range& range) {
-    for (int self = range.start; self < range.end; ++self) {
-      const auto s = static_cast<std::size_t>(self);
-      const float x = px[s], y = py[s], shift_x = sx[s], shift_y = sy[s];
-      std::array<std::int32_t, 3> within = {0, 0, 0}, agreeing = {0, 0, 0};
-      const int cx0 = grid.CellX(x - kRadius), cx1 = grid.CellX(x + kRadius);
-      const int cy0 = grid.CellY(y - kRadius), cy1 = grid.CellY(y + kRadius);
-      for (int cy = cy0; cy <= cy1; ++cy) {
-        const std::size_t end = grid.RowEnd(cy, cx1);
-        for (std::size_t k = grid.RowBegin(cy, cx0); k < end; ++k) {
-          const float ex = px[k] - x, ey = py[k] - y;
-          const float d2 = ex * ex + ey * ey;
-          const float fx = sx[k] - shift_x, fy = sy[k] - shift_y;
-          const std::int32_t agrees = fx * fx + fy * fy <= 1.0f ? 1 : 0;
-          for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
-            const std::int32_t in = d2 <= kAgreementRadiiPx[r] * kAgreementRadiiPx[r] ? 1 : 0;
-            within[r] += in;
-            agreeing[r] += in & agrees;
-          }
-        }
-      }
-      StereoMatch& m = matches[static_cast<std::size_t>(grid.items[s])];
-      for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
-        m.neighbours[r] = within[r] - 1;  // the scan counted the match itself (d2 = 0, agrees)
-        m.agreeing[r] = agreeing[r] - 1;
-      }
-    }
-  }, static_cast<double>(std::max<std::size_t>(1, n / 1024)));
-}
 
 std::string_view EngineName(hnn::EngineKind engine) {
   switch (engine) {
@@ -86,9 +37,13 @@ std::optional<hnn::EngineKind> ParseEngine(std::string_view name) {
 }
 
 std::string ConfidenceOptions::Check() const {
-  for (double v : {bias, w_potential_margin, w_correlation, w_correlation_margin, w_agreement[0],
-                   w_agreement[1], w_agreement[2], w_neighbours[0], w_neighbours[1], w_neighbours[2]}) {
+  for (double v : {bias, w_potential_margin, w_correlation, w_correlation_margin, w_surface_residual}) {
     if (!std::isfinite(v)) return "confidence weights must be finite";
+  }
+  for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
+    if (!std::isfinite(w_agreement[r]) || !std::isfinite(w_neighbours[r])) {
+      return "confidence weights must be finite";
+    }
   }
   if (!(potential_margin_cap > 0.0 && std::isfinite(potential_margin_cap))) {
     return "confidence potential_margin_cap must be > 0";
@@ -106,6 +61,7 @@ float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options
         match.neighbours[r] > 0 ? static_cast<double>(match.agreeing[r]) / match.neighbours[r] : 0.0;
     z += options.w_agreement[r] * agreement + options.w_neighbours[r] * match.neighbours[r];
   }
+  z += options.w_surface_residual * match.surface_residual;
   return static_cast<float>(1.0 / (1.0 + std::exp(-z)));
 }
 

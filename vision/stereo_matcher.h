@@ -26,32 +26,45 @@ std::string_view EngineName(hnn::EngineKind engine);
 std::optional<hnn::EngineKind> ParseEngine(std::string_view name);
 
 /// Radii (px, left image) of the neighbourhoods whose matches vote on a match's confidence:
-/// 3 and 6 px (the local surface) and 12 px (the network's support radius).
-inline constexpr std::array<float, 3> kAgreementRadiiPx = {3.0f, 6.0f, 12.0f};
+/// 3 and 6 px (the local surface), 12 px (the network's support radius) and 24 px.
+inline constexpr std::array<float, 4> kAgreementRadiiPx = {3.0f, 6.0f, 12.0f, 24.0f};
+/// A neighbour at distance s px agrees when its displacement is within 1 px + slope * s of the
+/// match's: 0 for the three inner radii; 0.1 px per px on the 24 px ring, so that a slanted
+/// surface (a disparity gradient up to 0.1) still agrees with itself there.
+inline constexpr std::array<float, 4> kAgreementSlope = {0.0f, 0.0f, 0.0f, 0.1f};
+/// The local surface: a plane fitted (least squares) to the displacements of the other matches
+/// within this radius (px, left image).
+inline constexpr float kSurfaceRadiusPx = 12.0f;
+/// surface_residual's value (px) when it cannot be fitted (fewer than 4 neighbours), and its cap.
+inline constexpr float kSurfaceResidualCapPx = 5.0f;
 
 /// The per-match confidence (docs/accuracy.md, "Confidence"): a logistic model of what the
 /// settled network and its neighbouring winners know about each winner,
 ///   confidence = 1 / (1 + exp(-z)),
 ///   z = bias + w_potential_margin * min(potential_margin, cap)
 ///     + w_correlation * correlation + w_correlation_margin * correlation_margin
-///     + sum_r ( w_agreement[r] * agreement_r + w_neighbours[r] * neighbours_r ),
+///     + sum_r ( w_agreement[r] * agreement_r + w_neighbours[r] * neighbours_r )
+///     + w_surface_residual * surface_residual,
 /// where potential_margin = u(winner) - u(best other neuron of its row) (at equilibrium
 /// u = sum_b W_ab V_b + I_a: the winner's lead in support over its runner-up);
 /// correlation = the winner's ZNCC, correlation_margin = its ZNCC minus the best other
 /// candidate's of the row; for r in kAgreementRadiiPx, neighbours_r = the other decoded matches
 /// whose left point lies within r px, agreement_r = the share of them whose displacement
-/// (right - left point) is within 1 px of this match's (0 with no neighbour): a wrong winner is
+/// (right - left point) agrees with this match's (kAgreementSlope; 0 with no neighbour);
+/// surface_residual = the distance (px) of this match's displacement from the plane fitted to
+/// its neighbours' within kSurfaceRadiusPx (capped at kSurfaceResidualCapPx). A wrong winner is
 /// one its surface does not back, and dense, agreeing neighbourhoods are textured surfaces the
 /// network resolved. Defaults: fitted by logistic regression (correct = within 1 px of the
 /// ground truth) on the five shared Middlebury pairs with hnn-default
 /// (scripts/fit_confidence.py; figures in docs/accuracy.md).
 struct ConfidenceOptions {
-  double bias = -7.66342;
-  double w_potential_margin = 0.000297355;
-  double w_correlation = 4.07631;
-  double w_correlation_margin = 0.420384;
-  std::array<double, 3> w_agreement = {0.198272, 0.285758, 4.14635};        ///< per kAgreementRadiiPx
-  std::array<double, 3> w_neighbours = {0.00575417, 0.00249759, 0.0256681};  ///< per kAgreementRadiiPx
+  double bias = -7.90734;
+  double w_potential_margin = 5.97741e-05;
+  double w_correlation = 4.22575;
+  double w_correlation_margin = 0.399208;
+  std::array<double, 4> w_agreement = {0.191842, 0.748735, 1.78553, 2.14769};  ///< per kAgreementRadiiPx
+  std::array<double, 4> w_neighbours = {-0.000448942, 0.0182109, 0.0133881, 0.00269549};  ///< per kAgreementRadiiPx
+  double w_surface_residual = -0.058943;  ///< per px
   double potential_margin_cap = 1e4;  ///< clamps absurd margins (none seen above ~1,500)
   std::string Check() const;
 };
@@ -85,16 +98,19 @@ struct StereoMatch {
   float correlation = 0.0f;         ///< the winner's ZNCC
   float correlation_margin = 0.0f;  ///< its ZNCC - the best other candidate's of the row
   /// Per kAgreementRadiiPx: other decoded matches within r px (left image), and how many of them
-  /// have a displacement within 1 px of this one's (ConfidenceOptions).
-  std::array<std::int32_t, 3> neighbours = {0, 0, 0};
-  std::array<std::int32_t, 3> agreeing = {0, 0, 0};
+  /// have a displacement that agrees with this one's (kAgreementSlope; ConfidenceOptions).
+  std::array<std::int32_t, 4> neighbours = {0, 0, 0, 0};
+  std::array<std::int32_t, 4> agreeing = {0, 0, 0, 0};
+  /// |displacement - the plane of the neighbours' displacements within kSurfaceRadiusPx| (px).
+  float surface_residual = kSurfaceResidualCapPx;
 };
 
 /// The confidence of `match` from its potential_margin, correlations and neighbourhood counts.
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);
 
-/// Fills `neighbours` and `agreeing` of every match (ConfidenceOptions) from the others' left
-/// points and displacements: a uniform grid of 12 px cells, so O(n) for evenly spread features.
+/// Fills `neighbours`, `agreeing` and `surface_residual` of every match (ConfidenceOptions) from
+/// the others' left points and displacements: a uniform grid of 24 px cells, so O(n) for evenly
+/// spread features.
 void CountAgreeingNeighbours(std::vector<StereoMatch>& matches);
 
 struct TimingMs {

@@ -2,6 +2,8 @@
 // counts it reads, the model's monotonicity, and that it ranks real matches (vendored Teddy).
 #include <gtest/gtest.h>
 
+#include <Eigen/QR>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -23,26 +25,47 @@ StereoMatch MatchAt(float x, float y, float dx, float dy) {
   return m;
 }
 
-// The definition, pair by pair: other matches within r px whose displacement is within 1 px.
+// The definition, pair by pair: other matches within r px whose displacement agrees (within
+// 1 px + slope * distance), and the distance of the displacement from the least-squares plane of
+// the neighbours' within kSurfaceRadiusPx (Eigen's QR, not the normal equations).
 void BruteForceCounts(const std::vector<StereoMatch>& matches, std::size_t i,
-                      std::array<int, 3>* neighbours, std::array<int, 3>* agreeing) {
-  *neighbours = {0, 0, 0};
-  *agreeing = {0, 0, 0};
+                      std::array<int, 4>* neighbours, std::array<int, 4>* agreeing,
+                      double* residual) {
+  *neighbours = {0, 0, 0, 0};
+  *agreeing = {0, 0, 0, 0};
   const StereoMatch& a = matches[i];
+  std::vector<Eigen::Vector3d> rows;
+  std::vector<Eigen::Vector2d> shifts;
   for (std::size_t j = 0; j < matches.size(); ++j) {
     if (j == i) continue;
     const StereoMatch& b = matches[j];
-    const float ex = b.left.x() - a.left.x(), ey = b.left.y() - a.left.y();
-    const float d2 = ex * ex + ey * ey;
-    const float fx = (b.right.x() - b.left.x()) - (a.right.x() - a.left.x());
-    const float fy = (b.right.y() - b.left.y()) - (a.right.y() - a.left.y());
-    const bool agrees = fx * fx + fy * fy <= 1.0f;
+    const double ex = b.left.x() - a.left.x(), ey = b.left.y() - a.left.y();
+    const double distance = std::hypot(ex, ey);
+    const Eigen::Vector2d shift_b = (b.right - b.left).cast<double>();
+    const double f = (shift_b - (a.right - a.left).cast<double>()).norm();
     for (std::size_t r = 0; r < kAgreementRadiiPx.size(); ++r) {
-      if (d2 <= kAgreementRadiiPx[r] * kAgreementRadiiPx[r]) {
+      if (distance <= kAgreementRadiiPx[r]) {
         ++(*neighbours)[r];
-        if (agrees) ++(*agreeing)[r];
+        if (f <= 1.0 + kAgreementSlope[r] * distance) ++(*agreeing)[r];
       }
     }
+    if (distance <= kSurfaceRadiusPx) {
+      rows.emplace_back(1.0, ex, ey);
+      shifts.push_back(shift_b);
+    }
+  }
+  *residual = kSurfaceResidualCapPx;
+  if (rows.size() >= 4) {
+    Eigen::MatrixXd A(static_cast<Eigen::Index>(rows.size()), 3);
+    Eigen::MatrixXd S(static_cast<Eigen::Index>(rows.size()), 2);
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      A.row(static_cast<Eigen::Index>(k)) = rows[k].transpose();
+      S.row(static_cast<Eigen::Index>(k)) = shifts[k].transpose();
+    }
+    const Eigen::MatrixXd plane = A.colPivHouseholderQr().solve(S);
+    const Eigen::Vector2d at_self = plane.row(0).transpose();
+    *residual = std::min<double>((at_self - (a.right - a.left).cast<double>()).norm(),
+                                 kSurfaceResidualCapPx);
   }
 }
 
@@ -67,18 +90,28 @@ TEST(CountAgreeingNeighbours, EqualsTheDefinitionOnScatteredMatches) {
   const std::vector<StereoMatch> original = matches;
   CountAgreeingNeighbours(matches);
   ASSERT_EQ(matches.size(), original.size());
-  int some_disagree = 0;
+  int some_disagree = 0, off_surface = 0, residual_checked = 0, off_by_one = 0;
   for (std::size_t i = 0; i < matches.size(); ++i) {
-    std::array<int, 3> neighbours{}, agreeing{};
-    BruteForceCounts(original, i, &neighbours, &agreeing);
-    for (std::size_t r = 0; r < 3; ++r) {
-      ASSERT_EQ(matches[i].neighbours[r], neighbours[r]) << "match " << i << " radius " << r;
-      ASSERT_EQ(matches[i].agreeing[r], agreeing[r]) << "match " << i << " radius " << r;
+    std::array<int, 4> neighbours{}, agreeing{};
+    double residual = 0.0;
+    BruteForceCounts(original, i, &neighbours, &agreeing, &residual);
+    for (std::size_t r = 0; r < 4; ++r) {
+      // Float vs double distances may differ on a point exactly on a circle: a tolerance of one.
+      ASSERT_NEAR(matches[i].neighbours[r], neighbours[r], 1) << "match " << i << " radius " << r;
+      ASSERT_NEAR(matches[i].agreeing[r], agreeing[r], 1) << "match " << i << " radius " << r;
+      off_by_one += (matches[i].neighbours[r] != neighbours[r]) + (matches[i].agreeing[r] != agreeing[r]);
     }
+    // The ridge (1e-3 of the spread) moves the plane by far less than 0.05 px.
+    ASSERT_NEAR(matches[i].surface_residual, residual, 0.05) << "match " << i;
+    residual_checked += residual < kSurfaceResidualCapPx;
     EXPECT_EQ(matches[i].left, original[i].left);  // order and points untouched
-    some_disagree += matches[i].agreeing[2] < matches[i].neighbours[2];
+    some_disagree += matches[i].agreeing[3] < matches[i].neighbours[3];
+    off_surface += matches[i].surface_residual > 2.0f;
   }
+  EXPECT_LE(off_by_one, 5);  // of about 24,000 counts
   EXPECT_GT(some_disagree, 100);
+  EXPECT_GT(off_surface, 100);           // the outliers
+  EXPECT_GT(residual_checked, 2000);     // most matches have a fitted surface
   EXPECT_EQ(matches.back().neighbours[0], 1);  // the lone pair, 3 px apart
   EXPECT_EQ(matches.back().agreeing[0], 1);
 }
@@ -99,12 +132,16 @@ TEST(MatchConfidence, RisesWithAgreementAndSupportAndStaysInZeroOne) {
   m.potential_margin = 200.0f;
   m.correlation = 0.8f;
   m.correlation_margin = 0.1f;
-  m.neighbours = {4, 12, 40};
-  m.agreeing = {1, 3, 10};
+  m.neighbours = {4, 12, 40, 150};
+  m.agreeing = {1, 3, 10, 40};
+  m.surface_residual = 3.0f;
   const float disagreeing = MatchConfidence(m, options);
-  m.agreeing = {4, 12, 40};
+  m.agreeing = {4, 12, 40, 150};
   const float agreeing = MatchConfidence(m, options);
   EXPECT_GT(agreeing, disagreeing);
+  m.surface_residual = 0.0f;
+  EXPECT_GT(MatchConfidence(m, options), agreeing);  // on its neighbours' plane
+  m.surface_residual = 3.0f;
   m.potential_margin = 900.0f;
   EXPECT_GT(MatchConfidence(m, options), agreeing);
   m.potential_margin = std::numeric_limits<float>::max();  // clamped by the cap, still finite
@@ -121,7 +158,10 @@ TEST(ConfidenceOptions, RefusesNonFiniteWeights) {
   options.w_agreement[1] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(options.Check().empty());
   options = {};
-  options.w_neighbours[2] = std::numeric_limits<double>::infinity();
+  options.w_neighbours[3] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(options.Check().empty());
+  options = {};
+  options.w_surface_residual = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(options.Check().empty());
   options = {};
   options.bias = std::numeric_limits<double>::quiet_NaN();
