@@ -289,11 +289,14 @@ TEST_F(CellPageCli, HeadlessChromiumShowsEveryPartAndTheOverlay) {
   fs::create_directories(HNNSTEREO_ARTIFACT_DIR);
   const std::string shot = std::string(HNNSTEREO_ARTIFACT_DIR) + "/cell_page.png";
   fs::remove(shot);
-  ASSERT_EQ(std::system((chromium + "--hide-scrollbars --window-size=1360,1000 --screenshot=" +
-                         shot + " " + url_ + " >> " + dir_ + "/chromium.log 2>&1")
-                            .c_str()),
-            0)
-      << ReadFile(dir_ + "/chromium.log");
+  // The page's content is asserted above from the DOM; the screenshot is an artifact. Headless
+  // chromium's --screenshot has hung here once for the whole `timeout` on a loaded 2-core
+  // machine (the same command took 24 s alone), so it gets a second try before it counts.
+  const std::string screenshot = chromium + "--hide-scrollbars --window-size=1360,1000 --screenshot=" +
+                                 shot + " " + url_ + " >> " + dir_ + "/chromium.log 2>&1";
+  int status = std::system(screenshot.c_str());
+  if (status != 0) status = std::system(screenshot.c_str());
+  ASSERT_EQ(status, 0) << ReadFile(dir_ + "/chromium.log");
   EXPECT_GT(fs::file_size(shot), 10000u) << shot;
   std::printf("screenshot: %s\n", shot.c_str());
 }
