@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "robot/link.h"
+#include "robot/modbus_frames.h"
 #include "robot/modbus_registers.h"
 
 namespace hnnstereo::robot {
@@ -431,7 +432,7 @@ class ModbusServerLink final : public RobotLink {
   }
 
   static bool HasWholeFrame(const Connection& connection) {
-    if (connection.input.size() < kMbapHeaderBytes) return false;
+    if (connection.input.size() < mb::kMbapHeaderBytes) return false;
     return connection.input.size() >= 6u + Word(connection.input.data() + 4);
   }
 
@@ -477,22 +478,15 @@ class ModbusServerLink final : public RobotLink {
 
   void ProcessFrames(Connection& connection) {
     for (int n = 0; n < kFramesPerRound && connection.close_reason.empty(); ++n) {
-      if (connection.input.size() < kMbapHeaderBytes) return;
-      const std::uint8_t* header = connection.input.data();
-      const int protocol = Word(header + 2);
-      const int length = Word(header + 4);
-      // Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3: the protocol identifier of
-      // Modbus is 0, and the length counts the unit id and the PDU - at least 2 bytes (unit id
-      // and function code) and at most 254 (a PDU is at most 253 bytes, Application Protocol
-      // V1.1b3, 4.1). Anything else is not a Modbus TCP peer, or a stream that lost its frame
-      // boundary and cannot regain it: drop the connection rather than wait for 65535 bytes.
-      if (protocol != 0 || length < kMinMbapLength || length > kMaxMbapLength) {
-        Mark(connection, "malformed MBAP header (protocol id " + std::to_string(protocol) +
-                             ", length " + std::to_string(length) + ")");
+      // A malformed header (mb::CutMbapFrame): not a Modbus TCP peer, or a stream that lost its
+      // frame boundary and cannot regain it - drop the connection rather than wait for 65535 bytes.
+      const mb::MbapCut cut = mb::CutMbapFrame(connection.input.data(), connection.input.size());
+      if (cut.kind == mb::MbapCut::Kind::kMalformed) {
+        Mark(connection, cut.problem);
         return;
       }
-      const std::size_t frame_bytes = 6u + static_cast<std::size_t>(length);
-      if (connection.input.size() < frame_bytes) return;
+      if (cut.kind == mb::MbapCut::Kind::kIncomplete) return;
+      const std::size_t frame_bytes = cut.frame_bytes;
       // Over its request rate: the frame waits in the buffer (NextDeadline wakes the loop when
       // a token is due) and, the buffer being full, nothing more is read from this client.
       if (!TakeToken(connection)) return;
@@ -690,131 +684,22 @@ class ModbusServerLink final : public RobotLink {
                                       std::chrono::duration<double>(wait_s));
   }
 
-  /// Answers one whole frame (MBAP header + PDU) into the connection's output.
+  /// Answers one whole frame (MBAP header + PDU) into the connection's output
+  /// (mb::HandleModbusFrame, robot/modbus_frames.h).
   void Answer(Connection& connection, const std::uint8_t* frame, std::size_t frame_bytes) {
-    const std::uint8_t unit = frame[6];
-    const std::uint8_t* pdu = frame + kMbapHeaderBytes;
-    const int pdu_length = static_cast<int>(frame_bytes - kMbapHeaderBytes);
-    std::vector<std::uint8_t> reply;
-    if (query_.unit && unit != *query_.unit) {
-      reply = ExceptionPdu(pdu[0], MODBUS_EXCEPTION_GATEWAY_TARGET);
-    } else {
+    mb::ModbusAnswer answer;
+    {
       std::lock_guard lock(mutex_);
-      peer_heard_steady_s_ = SteadyNowSeconds();
-      bool wrote_command = false;
-      reply = ExecuteLocked(pdu, pdu_length, &wrote_command);
-      if (wrote_command) QueueCommandLocked(connection.id);
+      answer = mb::HandleModbusFrame(frame, frame_bytes, query_.unit, mapping_->tab_registers,
+                                     register_count_);
+      if (answer.addressed) {
+        peer_heard_steady_s_ = SteadyNowSeconds();
+        if (answer.wrote_command) QueueCommandLocked(connection.id);
+      }
     }
-    if ((reply[0] & 0x80) == 0) connection.last_valid = Clock::now();
-    // The reply's MBAP header: the request's transaction id and unit id, protocol id 0, the
-    // length of unit id + PDU (Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3).
-    const std::size_t length = reply.size() + 1;
-    const char header[kMbapHeaderBytes] = {
-        static_cast<char>(frame[0]), static_cast<char>(frame[1]), 0, 0,
-        static_cast<char>(length >> 8), static_cast<char>(length & 0xFF),
-        static_cast<char>(unit)};
+    if (!answer.exception) connection.last_valid = Clock::now();
     if (connection.output.empty()) connection.output_since = Clock::now();
-    connection.output.append(header, kMbapHeaderBytes);
-    connection.output.append(reply.begin(), reply.end());
-  }
-
-  static std::vector<std::uint8_t> ExceptionPdu(std::uint8_t function, std::uint8_t code) {
-    return {static_cast<std::uint8_t>(function | 0x80), code};
-  }
-
-  /// Executes one request PDU on the holding registers; returns the response PDU (or an
-  /// exception PDU). Function codes and limits: Modbus Application Protocol V1.1b3, 6.
-  /// `wrote_command`: a write that succeeded and covered register 0.
-  std::vector<std::uint8_t> ExecuteLocked(const std::uint8_t* pdu, int length,
-                                          bool* wrote_command) {
-    const std::uint8_t function = pdu[0];
-    std::uint16_t* registers = mapping_->tab_registers;
-    const auto in_map = [this](int address, int count) {
-      return address + count <= register_count_;
-    };
-    const auto words_reply = [&](int address, int count) {
-      std::vector<std::uint8_t> reply = {function, static_cast<std::uint8_t>(2 * count)};
-      for (int i = 0; i < count; ++i) {
-        reply.push_back(static_cast<std::uint8_t>(registers[address + i] >> 8));
-        reply.push_back(static_cast<std::uint8_t>(registers[address + i] & 0xFF));
-      }
-      return reply;
-    };
-    const auto write_words = [&](int address, int count, const std::uint8_t* values) {
-      for (int i = 0; i < count; ++i) registers[address + i] = Word(values + 2 * i);
-      *wrote_command = address == mb::kCommandRegister;
-    };
-    // A PDU whose length does not match its function is an illegal data value (exception 3).
-    switch (function) {
-      case MODBUS_FC_READ_HOLDING_REGISTERS: {  // 6.3: quantity 1..125
-        if (length != 5) break;
-        const int address = Word(pdu + 1);
-        const int count = Word(pdu + 3);
-        if (count < 1 || count > MODBUS_MAX_READ_REGISTERS) break;
-        if (!in_map(address, count)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-        return words_reply(address, count);
-      }
-      case MODBUS_FC_WRITE_SINGLE_REGISTER: {  // 6.6: the response echoes the request
-        if (length != 5) break;
-        const int address = Word(pdu + 1);
-        if (!in_map(address, 1)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-        write_words(address, 1, pdu + 3);
-        return {pdu, pdu + 5};
-      }
-      case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: {  // 6.12: quantity 1..123, bytes = 2 x quantity
-        if (length < 6) break;
-        const int address = Word(pdu + 1);
-        const int count = Word(pdu + 3);
-        const int bytes = pdu[5];
-        if (count < 1 || count > MODBUS_MAX_WRITE_REGISTERS || bytes != 2 * count ||
-            length != 6 + bytes) {
-          break;
-        }
-        if (!in_map(address, count)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-        write_words(address, count, pdu + 6);
-        return {pdu, pdu + 5};
-      }
-      case MODBUS_FC_MASK_WRITE_REGISTER: {  // 6.16: (current AND and) OR (or AND NOT and)
-        if (length != 7) break;
-        const int address = Word(pdu + 1);
-        if (!in_map(address, 1)) return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-        const std::uint16_t and_mask = Word(pdu + 3);
-        const std::uint16_t or_mask = Word(pdu + 5);
-        registers[address] = static_cast<std::uint16_t>((registers[address] & and_mask) |
-                                                        (or_mask & ~and_mask));
-        *wrote_command = address == mb::kCommandRegister;
-        return {pdu, pdu + 7};
-      }
-      case MODBUS_FC_WRITE_AND_READ_REGISTERS: {  // 6.17: read 1..125, write 1..121; write first
-        if (length < 10) break;
-        const int read_address = Word(pdu + 1);
-        const int read_count = Word(pdu + 3);
-        const int write_address = Word(pdu + 5);
-        const int write_count = Word(pdu + 7);
-        const int bytes = pdu[9];
-        if (read_count < 1 || read_count > MODBUS_MAX_WR_READ_REGISTERS || write_count < 1 ||
-            write_count > MODBUS_MAX_WR_WRITE_REGISTERS || bytes != 2 * write_count ||
-            length != 10 + bytes) {
-          break;
-        }
-        if (!in_map(read_address, read_count) || !in_map(write_address, write_count)) {
-          return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-        }
-        write_words(write_address, write_count, pdu + 10);
-        return words_reply(read_address, read_count);
-      }
-      case MODBUS_FC_READ_COILS:
-      case MODBUS_FC_READ_DISCRETE_INPUTS:
-      case MODBUS_FC_READ_INPUT_REGISTERS:
-      case MODBUS_FC_WRITE_SINGLE_COIL:
-      case MODBUS_FC_WRITE_MULTIPLE_COILS:
-        // Tables this server has with no entries: every address is illegal (exception 2, as
-        // libmodbus's modbus_reply answered with empty tables).
-        return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS);
-      default:
-        return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
-    }
-    return ExceptionPdu(function, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    connection.output += answer.frame;
   }
 
   /// A write to register 0 became a command: queue it for the cell loop.
@@ -908,11 +793,6 @@ class ModbusServerLink final : public RobotLink {
   }
 
   static constexpr std::size_t kMaxQueuedCommands = 64;
-  // Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3: the MBAP header is transaction id
-  // (2 bytes), protocol id (2), length (2: the bytes that follow, unit id included), unit id.
-  static constexpr std::size_t kMbapHeaderBytes = 7;
-  static constexpr int kMinMbapLength = 2;    ///< unit id + function code
-  static constexpr int kMaxMbapLength = 254;  ///< unit id + the largest PDU (253 bytes)
   /// Bytes read ahead per connection: two of the largest frames (260 bytes each).
   static constexpr std::size_t kReadAheadBytes = 2 * MODBUS_TCP_MAX_ADU_LENGTH;
   static constexpr int kFramesPerRound = 4;    ///< per connection, per poll round

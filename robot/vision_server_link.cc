@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "robot/link.h"
+#include "robot/vision_server_protocol.h"
 
 namespace hnnstereo::robot {
 namespace {
@@ -55,25 +56,7 @@ void SetNonBlocking(int fd) {
   }
 }
 
-/// One reply line: `(st,x,y,z,rx,ry,rz)\n`, metres and radians (UR pose).
-std::string ReplyLine(int status, const PickCommand* pick) {
-  double v[6] = {0, 0, 0, 0, 0, 0};
-  if (pick != nullptr) {
-    const Eigen::AngleAxisd rotation(pick->orientation.normalized());
-    const Eigen::Vector3d rotation_vector = rotation.axis() * rotation.angle();
-    for (int i = 0; i < 3; ++i) {
-      v[i] = pick->position_mm[i] / 1000.0;
-      v[3 + i] = rotation_vector[i];
-    }
-  }
-  for (double& value : v) {
-    if (std::abs(value) < 5e-7) value = 0.0;  // never print "-0.000000"
-  }
-  char text[160];
-  std::snprintf(text, sizeof text, "(%d,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f)\n", status, v[0], v[1],
-                v[2], v[3], v[4], v[5]);
-  return text;
-}
+using vision_server::ReplyLine;
 
 class VisionServerLink final : public RobotLink {
  public:
@@ -230,12 +213,6 @@ class VisionServerLink final : public RobotLink {
   }
   Connection* Robot() { return const_cast<Connection*>(std::as_const(*this).Robot()); }
 
-  static std::string Printable(const std::string& text) {
-    std::string shown;
-    for (char c : text.substr(0, 40)) shown += (c >= 32 && c < 127) ? c : '?';
-    return text.size() > 40 ? shown + "..." : shown;
-  }
-
   bool TakeStop() {
     std::lock_guard<std::mutex> lock(stop_mutex_);
     if (!stop_requested_) return false;
@@ -253,24 +230,25 @@ class VisionServerLink final : public RobotLink {
       for (;;) {
         Connection* connection = Find(id);
         if (connection == nullptr || !connection->close_reason.empty()) break;
-        if (connection->input.find('\n') == std::string::npos) break;
+        if (!vision_server::HasCompleteLine(connection->input)) break;
         // Over its request rate: the line waits (PollOnce wakes when a token is due) and, its
         // buffer full, the client is not read from - TCP flow control slows it, nobody else.
         if (!TakeToken(*connection)) break;
         const std::string line = NextLine(*connection);
-        if (line == "TRIG" || line == "STOP" || line == "NEXT") {
+        const vision_server::Request request = vision_server::ParseRequest(line);
+        if (request != vision_server::Request::kMalformed) {
           BecomeRobot(*connection);
-          if (line == "TRIG") {
+          if (request == vision_server::Request::kTrigger) {
             ++stats_.triggers;
             return Trigger{TriggerKind::kTrigger, ++request_sequence_};
           }
-          if (line == "STOP") {
+          if (request == vision_server::Request::kStop) {
             ClearPending();
             return Trigger{TriggerKind::kStop, request_sequence_};
           }
           ReplyNext();
         } else {
-          Malformed(*connection, "unknown request '" + Printable(line) + "'");
+          Malformed(*connection, "unknown request '" + vision_server::Printable(line) + "'");
         }
       }
     }
@@ -481,18 +459,11 @@ class VisionServerLink final : public RobotLink {
                              MSG_DONTWAIT);
       if (n > 0) {
         if (connection.id == robot_id_) heard_ = Clock::now();
-        const auto old_newline = connection.input.rfind('\n');
-        const bool tail_was_empty = old_newline == std::string::npos
-                                        ? connection.input.empty()
-                                        : old_newline + 1 == connection.input.size();
-        connection.input.append(buffer, static_cast<std::size_t>(n));
         // Only the unterminated tail counts against the line limit.
-        const auto newline = connection.input.rfind('\n');
-        const std::size_t tail = newline == std::string::npos
-                                     ? connection.input.size()
-                                     : connection.input.size() - newline - 1;
-        if (tail_was_empty && tail > 0) connection.partial_since = Clock::now();
-        if (tail > limits().max_line_bytes) {
+        const vision_server::Appended appended = vision_server::AppendReceived(
+            &connection.input, buffer, static_cast<std::size_t>(n));
+        if (appended.tail_started) connection.partial_since = Clock::now();
+        if (appended.tail > limits().max_line_bytes) {
           Malformed(connection, "request longer than " + std::to_string(limits().max_line_bytes) +
                                     " bytes without a newline; connection closed");
           Flush(connection);
@@ -516,13 +487,8 @@ class VisionServerLink final : public RobotLink {
 
   // One complete request, trimmed of spaces and the CR a `socket_send_line` may add.
   std::string NextLine(Connection& connection) {
-    const auto newline = connection.input.find('\n');
-    std::string line = connection.input.substr(0, newline);
-    connection.input.erase(0, newline + 1);
     connection.partial_since = Clock::now();
-    const auto first = line.find_first_not_of(" \t\r");
-    const auto last = line.find_last_not_of(" \t\r");
-    return first == std::string::npos ? std::string() : line.substr(first, last - first + 1);
+    return vision_server::TakeLine(&connection.input);
   }
 
   bool TakeToken(Connection& connection) {

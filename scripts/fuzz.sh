@@ -10,11 +10,14 @@ SECONDS_EACH=${1:-60}
 BUILD_DIR=${BUILD_DIR:-build-fuzz}
 # The Debian packages, clang included (scripts/setup.sh installs it only when asked).
 HNNSTEREO_FUZZ=1 HNNSTEREO_SETUP_PACKAGES_ONLY=1 bash scripts/setup.sh
+# HNNSTEREO_BUILD_CLI=ON for the robot library and app/cli_support.cc (FRAME.yml, Modbus,
+# vision-server, --config); the tests and the perf harness stay off.
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
   launcher=()
   if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
   cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ \
-    -DHNNSTEREO_FUZZ=ON -DHNNSTEREO_BUILD_CLI=OFF -DHNNSTEREO_INSTALL=OFF ${launcher[@]+"${launcher[@]}"} >/dev/null
+    -DHNNSTEREO_FUZZ=ON -DHNNSTEREO_BUILD_CLI=ON -DHNNSTEREO_BUILD_TESTS=OFF \
+    -DHNNSTEREO_BUILD_PERF=OFF -DHNNSTEREO_INSTALL=OFF ${launcher[@]+"${launcher[@]}"} >/dev/null
 fi
 cmake --build "$BUILD_DIR" -j "${BUILD_JOBS:-2}" --target fuzzers
 status=0

@@ -1,5 +1,6 @@
 // The Modbus register codec (robot/modbus_registers.h): int32 words high first, fixed-point
-// poses, int16 status, and refusal (never wrap) of values that do not fit.
+// poses, int16 status, and refusal (never wrap) of values that do not fit. The server's request
+// path without sockets (robot/modbus_frames.h): MBAP frames cut and answered.
 #include "robot/modbus_registers.h"
 
 #include <gtest/gtest.h>
@@ -7,10 +8,14 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <random>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "robot/link.h"
+#include "robot/modbus_frames.h"
 
 namespace hnnstereo::robot::modbus {
 namespace {
@@ -109,6 +114,102 @@ TEST(ModbusRegisters, MapSize) {
   EXPECT_EQ(RegisterCount(1), 28);
   EXPECT_EQ(RegisterCount(16), 148);
   EXPECT_EQ(RegisterCount(64), 532);
+}
+
+
+// An MBAP frame: transaction id, protocol 0, length (unit id + PDU), unit id, PDU.
+std::vector<std::uint8_t> Frame(std::uint16_t transaction, std::uint8_t unit,
+                                const std::vector<std::uint8_t>& pdu) {
+  const std::size_t length = pdu.size() + 1;
+  std::vector<std::uint8_t> frame = {static_cast<std::uint8_t>(transaction >> 8),
+                                     static_cast<std::uint8_t>(transaction & 0xFF), 0, 0,
+                                     static_cast<std::uint8_t>(length >> 8),
+                                     static_cast<std::uint8_t>(length & 0xFF), unit};
+  frame.insert(frame.end(), pdu.begin(), pdu.end());
+  return frame;
+}
+
+std::string Bytes(const std::vector<std::uint8_t>& bytes) {
+  return std::string(bytes.begin(), bytes.end());
+}
+
+TEST(ModbusFrames, CutWaitsForWholeFramesAndRefusesBrokenHeaders) {
+  const std::vector<std::uint8_t> read = Frame(7, 1, {0x03, 0x00, 0x0A, 0x00, 0x04});
+  EXPECT_EQ(CutMbapFrame(read.data(), 6).kind, MbapCut::Kind::kIncomplete);
+  EXPECT_EQ(CutMbapFrame(read.data(), read.size() - 1).kind, MbapCut::Kind::kIncomplete);
+  std::vector<std::uint8_t> two = read;
+  two.insert(two.end(), read.begin(), read.end());
+  const MbapCut cut = CutMbapFrame(two.data(), two.size());
+  EXPECT_EQ(cut.kind, MbapCut::Kind::kWhole);
+  EXPECT_EQ(cut.frame_bytes, read.size());
+  std::vector<std::uint8_t> bad = read;
+  bad[3] = 1;  // protocol id 1
+  EXPECT_EQ(CutMbapFrame(bad.data(), bad.size()).kind, MbapCut::Kind::kMalformed);
+  EXPECT_EQ(CutMbapFrame(bad.data(), bad.size()).problem,
+            "malformed MBAP header (protocol id 1, length 6)");
+  for (const std::uint16_t length : {0, 1, 255, 65535}) {
+    bad = read;
+    bad[3] = 0;
+    bad[4] = static_cast<std::uint8_t>(length >> 8);
+    bad[5] = static_cast<std::uint8_t>(length & 0xFF);
+    EXPECT_EQ(CutMbapFrame(bad.data(), bad.size()).kind, MbapCut::Kind::kMalformed) << length;
+  }
+}
+
+TEST(ModbusFrames, AnswersReadsAndWritesOnTheRegisters) {
+  std::vector<std::uint16_t> registers(static_cast<std::size_t>(RegisterCount(1)), 0);
+  const int count = static_cast<int>(registers.size());
+  registers[kStatusRegister] = 0x1234;
+  // 3: read status .. pose count
+  std::vector<std::uint8_t> request = Frame(0x0102, 1, {0x03, 0x00, 0x0B, 0x00, 0x02});
+  ModbusAnswer answer = HandleModbusFrame(request.data(), request.size(), std::nullopt,
+                                          registers.data(), count);
+  EXPECT_TRUE(answer.addressed);
+  EXPECT_FALSE(answer.exception);
+  EXPECT_FALSE(answer.wrote_command);
+  EXPECT_EQ(answer.frame, Bytes(Frame(0x0102, 1, {0x03, 0x04, 0x12, 0x34, 0x00, 0x00})));
+  // 6: the trigger into register 0, echoed
+  request = Frame(3, 1, {0x06, 0x00, 0x00, 0x00, 0x01});
+  answer = HandleModbusFrame(request.data(), request.size(), 1, registers.data(), count);
+  EXPECT_TRUE(answer.wrote_command);
+  EXPECT_EQ(answer.frame, Bytes(request));
+  EXPECT_EQ(registers[kCommandRegister], kCommandTrigger);
+  // 16: sequence and command in one write; 22: mask write; 23: write then read
+  request = Frame(4, 1, {0x10, 0x00, 0x00, 0x00, 0x02, 0x04, 0x00, 0x02, 0x00, 0x2A});
+  answer = HandleModbusFrame(request.data(), request.size(), std::nullopt, registers.data(), count);
+  EXPECT_TRUE(answer.wrote_command);
+  EXPECT_EQ(answer.frame, Bytes(Frame(4, 1, {0x10, 0x00, 0x00, 0x00, 0x02})));
+  EXPECT_EQ(registers[kRequestSequenceRegister], 42);
+  request = Frame(5, 1, {0x16, 0x00, 0x01, 0xFF, 0x00, 0x00, 0x07});
+  answer = HandleModbusFrame(request.data(), request.size(), std::nullopt, registers.data(), count);
+  EXPECT_FALSE(answer.wrote_command);
+  EXPECT_EQ(registers[kRequestSequenceRegister], 7);
+  request = Frame(6, 1, {0x17, 0x00, 0x01, 0x00, 0x01, 0x00, 0x01, 0x00, 0x01, 0x02, 0x00, 0x09});
+  answer = HandleModbusFrame(request.data(), request.size(), std::nullopt, registers.data(), count);
+  EXPECT_EQ(answer.frame, Bytes(Frame(6, 1, {0x17, 0x02, 0x00, 0x09})));
+}
+
+TEST(ModbusFrames, ExceptionsLeaveTheRegistersAlone) {
+  std::vector<std::uint16_t> registers(static_cast<std::size_t>(RegisterCount(1)), 5);
+  const std::vector<std::uint16_t> before = registers;
+  const int count = static_cast<int>(registers.size());
+  const auto exception_of = [&](const std::vector<std::uint8_t>& request, std::optional<int> unit) {
+    const ModbusAnswer answer =
+        HandleModbusFrame(request.data(), request.size(), unit, registers.data(), count);
+    EXPECT_TRUE(answer.exception);
+    EXPECT_FALSE(answer.wrote_command);
+    EXPECT_EQ(answer.frame.size(), 9u);
+    return answer.frame.size() == 9u ? static_cast<int>(static_cast<std::uint8_t>(answer.frame[8])) : -1;
+  };
+  // Another unit id than the one served: gateway target (0x0B), not executed.
+  EXPECT_EQ(exception_of(Frame(1, 2, {0x06, 0x00, 0x00, 0x00, 0x01}), 1), 0x0B);
+  EXPECT_EQ(exception_of(Frame(1, 1, {0x2B, 0x0E, 0x01, 0x00}), std::nullopt), 1);   // function
+  EXPECT_EQ(exception_of(Frame(1, 1, {0x03, 0x00, 0x1B, 0x00, 0x02}), std::nullopt), 2);  // past the map
+  EXPECT_EQ(exception_of(Frame(1, 1, {0x06, 0x00, 0x00, 0x00}), std::nullopt), 3);  // short PDU
+  EXPECT_EQ(exception_of(Frame(1, 1, {0x10, 0x00, 0x00, 0x00, 0x02, 0x04, 0x00, 0x01}),
+                         std::nullopt), 3);  // fewer value bytes than announced
+  EXPECT_EQ(exception_of(Frame(1, 1, {0x03}), std::nullopt), 3);  // function code alone
+  EXPECT_EQ(registers, before);
 }
 
 }  // namespace

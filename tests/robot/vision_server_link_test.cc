@@ -13,10 +13,12 @@
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "robot/link.h"
 #include "robot/pick_planning.h"
+#include "robot/vision_server_protocol.h"
 
 namespace hnnstereo::robot {
 namespace {
@@ -310,6 +312,51 @@ TEST(VisionServerLinkUri, RejectsOptionsAndReportsAPortInUse) {
   EXPECT_THROW(
       OpenLink("vision-server://127.0.0.1:" + port, SafetyGate(SafetyLimits{}, true), {}),
       std::runtime_error);
+}
+
+
+// The protocol without the sockets (robot/vision_server_protocol.h), as the link uses it.
+TEST(VisionServerProtocol, LinesAreCutTrimmedAndParsed) {
+  std::string input;
+  const auto append = [&input](const std::string& bytes) {
+    return vision_server::AppendReceived(&input, bytes.data(), bytes.size());
+  };
+  vision_server::Appended appended = append("  TRIG\r");
+  EXPECT_EQ(appended.tail, 7u);
+  EXPECT_TRUE(appended.tail_started);
+  EXPECT_FALSE(vision_server::HasCompleteLine(input));
+  appended = append("\nNEXT\n\tSTOP \nnext\nHEL");
+  EXPECT_EQ(appended.tail, 3u);
+  EXPECT_FALSE(appended.tail_started);  // the tail "  TRIG\r" had begun before
+  using vision_server::Request;
+  const std::vector<std::pair<std::string, Request>> expected = {
+      {"TRIG", Request::kTrigger}, {"NEXT", Request::kNext}, {"STOP", Request::kStop},
+      {"next", Request::kMalformed}};
+  for (const auto& [line, request] : expected) {
+    ASSERT_TRUE(vision_server::HasCompleteLine(input));
+    const std::string taken = vision_server::TakeLine(&input);
+    EXPECT_EQ(taken, line);
+    EXPECT_EQ(vision_server::ParseRequest(taken), request) << taken;
+  }
+  EXPECT_EQ(input, "HEL");
+  EXPECT_FALSE(vision_server::HasCompleteLine(input));
+  appended = append("LO\n");
+  EXPECT_EQ(appended.tail, 0u);
+  EXPECT_EQ(vision_server::TakeLine(&input), "HELLO");
+  EXPECT_TRUE(input.empty());
+  append("\r \n");
+  EXPECT_EQ(vision_server::TakeLine(&input), "");
+}
+
+TEST(VisionServerProtocol, LogTextIsPrintableAndRepliesAreOneLine) {
+  EXPECT_EQ(vision_server::Printable(std::string("A\0\x7f\xff", 4)), "A???");
+  EXPECT_EQ(vision_server::Printable(std::string(50, 'x')), std::string(40, 'x') + "...");
+  EXPECT_EQ(vision_server::ReplyLine(kErrorMalformedRequest, nullptr),
+            "(-4,0.000000,0.000000,0.000000,0.000000,0.000000,0.000000)\n");
+  PickCommand pick;
+  pick.position_mm = Eigen::Vector3d(-150.0, 80.0, 60.0);
+  EXPECT_EQ(vision_server::ReplyLine(1, &pick),
+            "(1,-0.150000,0.080000,0.060000,0.000000,0.000000,0.000000)\n");
 }
 
 }  // namespace
