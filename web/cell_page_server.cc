@@ -8,6 +8,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
+#include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 namespace hnnstereo::web {
 namespace {
@@ -29,11 +31,16 @@ void LowerThisThreadsPriority() {
   setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 19);
 }
 
-// httplib's own ThreadPool, with workers at the lowest priority.
+// httplib's ThreadPool, with workers at the lowest priority, made elastic: `base` workers stay;
+// when a connection arrives and no worker is idle, another is started (up to `most`), and such
+// extra workers end after kExtraIdle without work. A silent or byte-at-a-time client holds its
+// worker until the read timeout; with a fixed pool 200 of them queued every later request behind
+// 200 x the timeout (hand-written: httplib 0.11 has no elastic pool and no accept hook).
 class LowPriorityThreadPool final : public httplib::TaskQueue {
  public:
-  explicit LowPriorityThreadPool(int threads) {
-    for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { Work(); });
+  LowPriorityThreadPool(int base, int most) : base_(base), most_(std::max(base, most)) {
+    std::lock_guard lock(mutex_);
+    for (int i = 0; i < base_; ++i) StartWorkerLocked();
   }
   ~LowPriorityThreadPool() override { shutdown(); }
 
@@ -41,6 +48,9 @@ class LowPriorityThreadPool final : public httplib::TaskQueue {
     {
       std::lock_guard lock(mutex_);
       tasks_.push_back(std::move(task));
+      if (idle_ < static_cast<int>(tasks_.size()) && running_ < most_ && !stopping_) {
+        StartWorkerLocked();
+      }
     }
     changed_.notify_one();
   }
@@ -52,29 +62,62 @@ class LowPriorityThreadPool final : public httplib::TaskQueue {
       stopping_ = true;
     }
     changed_.notify_all();
-    for (std::thread& worker : workers_) worker.join();
-  }
-
- private:
-  void Work() {
-    LowerThisThreadsPriority();
-    for (;;) {
-      std::function<void()> task;
-      {
-        std::unique_lock lock(mutex_);
-        changed_.wait(lock, [this] { return stopping_ || !tasks_.empty(); });
-        if (stopping_ && tasks_.empty()) return;
-        task = std::move(tasks_.front());
-        tasks_.pop_front();
-      }
-      task();
+    std::unique_lock lock(mutex_);
+    ended_.wait(lock, [this] { return running_ == 0; });
+    lock.unlock();
+    for (std::thread& worker : workers_) {
+      if (worker.joinable()) worker.join();
     }
   }
 
+ private:
+  static constexpr std::chrono::seconds kExtraIdle{5};
+
+  void StartWorkerLocked() {
+    // Join the extra workers that ended since (they have left Work(); join waits at most for
+    // their last instructions), so that months of bursts leave no unjoined threads behind.
+    for (std::list<std::thread>::iterator ended : finished_) {
+      ended->join();
+      workers_.erase(ended);
+    }
+    finished_.clear();
+    ++running_;
+    workers_.emplace_back();
+    const std::list<std::thread>::iterator self = std::prev(workers_.end());
+    *self = std::thread([this, self] { Work(self); });
+  }
+
+  void Work(std::list<std::thread>::iterator self) {
+    LowerThisThreadsPriority();
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      ++idle_;
+      const bool woken = changed_.wait_for(lock, kExtraIdle,
+                                           [this] { return stopping_ || !tasks_.empty(); });
+      --idle_;
+      if ((stopping_ && tasks_.empty()) || (!woken && running_ > base_)) break;
+      if (tasks_.empty()) continue;
+      std::function<void()> task = std::move(tasks_.front());
+      tasks_.pop_front();
+      lock.unlock();
+      task();
+      lock.lock();
+    }
+    if (!stopping_) finished_.push_back(self);  // joined by the next StartWorkerLocked
+    --running_;
+    ended_.notify_all();
+  }
+
+  const int base_;
+  const int most_;
   std::mutex mutex_;
   std::condition_variable changed_;
+  std::condition_variable ended_;
   std::deque<std::function<void()>> tasks_;
   std::list<std::thread> workers_;
+  std::vector<std::list<std::thread>::iterator> finished_;
+  int running_ = 0;
+  int idle_ = 0;
   bool stopping_ = false;
 };
 
@@ -135,6 +178,8 @@ std::string CellPageOptions::Check() const {
   if (host.empty()) return "--http: the host is empty (127.0.0.1:PORT for this machine only)";
   if (port < 0 || port > 65535) return "--http: port " + std::to_string(port) + " not in 0..65535";
   if (threads < 1) return "http threads must be >= 1";
+  if (max_threads < threads || max_threads > 1024) return "http max threads must be in [threads, 1024]";
+  if (read_timeout_s < 1 || read_timeout_s > 60) return "http read timeout must be 1-60 s";
   if (write_timeout_s < 1) return "http write timeout must be >= 1 s";
   if (!(max_images_per_second >= 0.0)) return "max_images_per_second must be >= 0";
   if (!IsLoopbackHost(host) && token.empty()) {
@@ -204,9 +249,10 @@ struct CellPageServer::Impl {
 
   void Routes() {
     const int threads = options.threads;
-    server.new_task_queue = [threads] { return new LowPriorityThreadPool(threads); };
+    const int most = options.max_threads;
+    server.new_task_queue = [threads, most] { return new LowPriorityThreadPool(threads, most); };
     server.set_write_timeout(options.write_timeout_s, 0);
-    server.set_read_timeout(5, 0);
+    server.set_read_timeout(options.read_timeout_s, 0);
     server.set_keep_alive_max_count(20);
     server.set_keep_alive_timeout(2);
     server.set_payload_max_length(64 * 1024);

@@ -22,7 +22,14 @@ struct CellPageOptions {
   int port = 0;                    ///< 0 = any free port (CellPageServer::port() names it)
   /// When set, every request must carry it (`Authorization: Bearer T` or `?token=T`), else 401.
   std::string token;
-  int threads = 8;          ///< HTTP worker threads (each serves one connection at a time)
+  int threads = 8;          ///< HTTP worker threads kept (each serves one connection at a time)
+  /// Workers added while every worker is busy, up to this many in all (idle extra ones end after
+  /// a few seconds): connections that send nothing hold a worker each for `read_timeout_s`, so a
+  /// crowd of them after the accept deferral must not leave a real request waiting in a queue.
+  int max_threads = 128;
+  /// A client that sends nothing for this long (between the bytes of a request, or after a
+  /// keep-alive answer) is dropped. A browser on the cell's network sends a request at once.
+  int read_timeout_s = 1;
   int write_timeout_s = 5;  ///< a client that stops reading is dropped after this long
   /// At most this many PNG answers a second over all clients (the rest wait their turn): bounds
   /// the page's total work - encoding, copying, the kernel's sends - however many clients poll

@@ -322,5 +322,36 @@ TEST_F(CellPageServerTest, SilentConnectionsDoNotQueueInFrontOfARequest) {
   EXPECT_LT(seconds, 2.0);
 }
 
+// After the accept deferral (5 s) the kernel hands the silent connections over anyway. With a
+// fixed pool of 8 workers and a 5 s read timeout each of the 200 held a worker in turn: a request
+// 8 s after they opened got no answer within 30 s. Now extra workers take them and drop each
+// after the 1 s read timeout.
+TEST_F(CellPageServerTest, SilentConnectionsPastTheAcceptDeferralDoNotStallARequest) {
+  PublishScene();
+  CellPageServer server(board_, {});
+  std::vector<int> silent;
+  for (int k = 0; k < 200; ++k) {
+    const int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<std::uint16_t>(server.port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+    silent.push_back(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(8));
+  httplib::Client client("127.0.0.1", server.port());
+  client.set_read_timeout(10, 0);
+  const auto start = std::chrono::steady_clock::now();
+  auto status = client.Get("/api/status");
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  for (int fd : silent) close(fd);
+  ASSERT_TRUE(status) << "no answer 8 s after 200 silent connections opened";
+  EXPECT_EQ(status->status, 200);
+  EXPECT_LT(seconds, 3.0);
+  std::printf("status answered in %.3f s, 8 s after 200 silent connections opened\n", seconds);
+}
+
 }  // namespace
 }  // namespace hnnstereo::web
