@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -121,11 +122,13 @@ TEST(ModbusRegisters, MapSize) {
 std::vector<std::uint8_t> Frame(std::uint16_t transaction, std::uint8_t unit,
                                 const std::vector<std::uint8_t>& pdu) {
   const std::size_t length = pdu.size() + 1;
-  std::vector<std::uint8_t> frame = {static_cast<std::uint8_t>(transaction >> 8),
-                                     static_cast<std::uint8_t>(transaction & 0xFF), 0, 0,
-                                     static_cast<std::uint8_t>(length >> 8),
-                                     static_cast<std::uint8_t>(length & 0xFF), unit};
-  frame.insert(frame.end(), pdu.begin(), pdu.end());
+  std::vector<std::uint8_t> frame(kMbapHeaderBytes + pdu.size(), 0);
+  frame[0] = static_cast<std::uint8_t>(transaction >> 8);
+  frame[1] = static_cast<std::uint8_t>(transaction & 0xFF);
+  frame[4] = static_cast<std::uint8_t>(length >> 8);
+  frame[5] = static_cast<std::uint8_t>(length & 0xFF);
+  frame[6] = unit;
+  std::copy(pdu.begin(), pdu.end(), frame.begin() + kMbapHeaderBytes);
   return frame;
 }
 
@@ -147,7 +150,7 @@ TEST(ModbusFrames, CutWaitsForWholeFramesAndRefusesBrokenHeaders) {
   EXPECT_EQ(CutMbapFrame(bad.data(), bad.size()).kind, MbapCut::Kind::kMalformed);
   EXPECT_EQ(CutMbapFrame(bad.data(), bad.size()).problem,
             "malformed MBAP header (protocol id 1, length 6)");
-  for (const std::uint16_t length : {0, 1, 255, 65535}) {
+  for (const int length : {0, 1, 255, 65535}) {
     bad = read;
     bad[3] = 0;
     bad[4] = static_cast<std::uint8_t>(length >> 8);
