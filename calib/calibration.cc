@@ -159,6 +159,9 @@ StereoCalibration LoadCalibration(const std::string& path) {
   if (text.find("cam0") != std::string::npos && text.find("baseline") != std::string::npos) {
     cal = ParseMiddleburyCalib(text);
   } else {
+    if (const std::string problem = CheckYamlText(text); !problem.empty()) {
+      throw std::runtime_error("calibration file '" + path + "' " + problem);
+    }
     cv::FileStorage fs;
     try {
       fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);

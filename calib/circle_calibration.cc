@@ -114,6 +114,9 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
   TargetDescription target;
   try {
     const std::string text = ReadTextFileWithin(path, "target.yml");
+    if (const std::string problem = CheckYamlText(text); !problem.empty()) {
+      throw std::runtime_error(Where(path) + " " + problem);
+    }
     cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY |
                                       cv::FileStorage::FORMAT_YAML);
     if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");

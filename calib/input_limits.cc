@@ -348,6 +348,13 @@ std::string TextInputLimits::Check() const {
   return {};
 }
 
+std::string CheckYamlText(const std::string& text) {
+  // cv::FileStorage skips a UTF-8 byte order mark, then reads "<?xml" as XML.
+  const std::size_t start = text.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;
+  if (text.compare(start, 5, "<?xml") == 0) return "is XML; only OpenCV YAML is read";
+  return {};
+}
+
 std::string ReadTextFileWithin(const std::string& path, const std::string& what,
                                const TextInputLimits& limits) {
   namespace fs = std::filesystem;

@@ -65,6 +65,13 @@ cv::Mat ReadImageFileWithin(const std::string& path, int flags, const ImageLimit
 /// cols: 100000" asks for 80 GB (found by fuzz_cal_yml).
 std::string CheckMatrixNode(const cv::FileNode& node, std::size_t max_elements);
 
+/// Empty when `text` (a whole CAL.yml, target.yml or FRAME.yml) may be handed to
+/// cv::FileStorage as YAML, else a reason. OpenCV picks its parser from the first bytes whatever
+/// format flag it is given, and OpenCV 4.6's XML parser dereferences a null pointer on a text
+/// that ends inside its header ("<?xml version=", found by fuzz_frame_yml; CAL.yml and target.yml
+/// crashed on it too): the project's files are YAML, so text OpenCV would parse as XML is refused.
+std::string CheckYamlText(const std::string& text);
+
 /// Reads the whole text file `path` (named `what` in messages, e.g. "calibration file").
 /// Throws std::runtime_error with one line when it does not exist, is not a regular file, is
 /// larger than `limits.max_file_bytes` or cannot be read.

@@ -42,14 +42,21 @@ RobotFrame LoadRobotFrame(const std::string& path) {
   } catch (const std::runtime_error& e) {
     throw std::invalid_argument(e.what());
   }
+  // YAML only, as CAL.yml and target.yml: OpenCV 4.6's XML parser dereferences a null pointer
+  // on a file that ends inside its header ("<?xml version=", found by fuzz/fuzz_frame_yml.cc),
+  // and OpenCV reads "<?xml" as XML whatever format flag it is given.
+  if (const std::string problem = calib::CheckYamlText(text); !problem.empty()) {
+    throw std::invalid_argument("frame file '" + path + "' " + problem);
+  }
   cv::FileStorage storage;
   try {
-    storage.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    storage.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY |
+                           cv::FileStorage::FORMAT_YAML);
   } catch (const cv::Exception&) {
-    throw std::invalid_argument("frame file '" + path + "' is not an OpenCV YAML/XML file");
+    throw std::invalid_argument("frame file '" + path + "' is not an OpenCV YAML file");
   }
   if (!storage.isOpened()) {
-    throw std::invalid_argument("frame file '" + path + "' cannot be read as OpenCV YAML/XML");
+    throw std::invalid_argument("frame file '" + path + "' cannot be read as OpenCV YAML");
   }
   auto read = [&](const char* key, int rows, int cols) {
     cv::Mat m;
@@ -88,7 +95,8 @@ RobotFrame LoadRobotFrame(const std::string& path) {
 void SaveRobotFrame(const std::string& path, const RobotFrame& frame) {
   if (auto error = frame.Check(); !error.empty()) throw std::invalid_argument(error);
   calib::WriteAtomically(path, [&](const std::string& temporary) {
-    cv::FileStorage storage(temporary, cv::FileStorage::WRITE);
+    // YAML whatever the extension (LoadRobotFrame reads YAML only).
+    cv::FileStorage storage(temporary, cv::FileStorage::WRITE | cv::FileStorage::FORMAT_YAML);
     if (!storage.isOpened()) throw std::runtime_error("cannot write '" + path + "'");
     cv::Mat transform, min, max;
     cv::eigen2cv(Eigen::Matrix4d(frame.robot_from_world.matrix()), transform);

@@ -1,6 +1,6 @@
 #pragma once
-// FRAME.yml (OpenCV FileStorage, ARCHITECTURE.md): robot_from_world (4x4), workspace_min and
-// workspace_max (3x1, mm, robot frame), rms_mm (residual of the fit that produced it).
+// FRAME.yml (OpenCV FileStorage YAML, ARCHITECTURE.md): robot_from_world (4x4), workspace_min
+// and workspace_max (3x1, mm, robot frame), rms_mm (residual of the fit that produced it).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -24,7 +24,7 @@ struct RobotFrame {
 /// missing or of the wrong size, not a rigid transform).
 RobotFrame LoadRobotFrame(const std::string& path);
 
-/// Written atomically (a temporary file renamed onto `path`).
+/// Written atomically (a temporary file renamed onto `path`), as YAML whatever its extension.
 void SaveRobotFrame(const std::string& path, const RobotFrame& frame);
 
 /// The thesis cell's frame (THESIS.md section 5): x_r = 600 - X, y_r = 400 - Y, z_r = Z (mm),

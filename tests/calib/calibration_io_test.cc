@@ -122,6 +122,21 @@ TEST(KnownPoints, PlanarPointsAreRefusedAndNothingIsWritten) {
   EXPECT_NE(error.find("left camera"), std::string::npos) << error;
 }
 
+// A file that ends inside an XML header made OpenCV's XML parser dereference a null pointer
+// (fuzz_frame_yml; OpenCV reads "<?xml" as XML whatever format flag it is given): CAL.yml and
+// target.yml are read as YAML only, and such a file is refused with one line.
+TEST(CalibrationFile, XmlIsRefusedNotACrash) {
+  const std::string dir = testing::TemporaryDirectory("xml_files");
+  for (const std::string& text : {std::string("<?xml version="), std::string("\xEF\xBB\xBF<?xml"),
+                                  std::string("<?xml version=\"1.0\"?>\n<opencv_storage>\n")}) {
+    WriteText(dir + "/cal.yml", text);
+    EXPECT_NE(ErrorOf([&] { LoadCalibration(dir + "/cal.yml"); }).find("is XML"), std::string::npos)
+        << text;
+    WriteText(dir + "/target.yml", text);
+    EXPECT_NE(ErrorOf([&] { LoadTargetDirectory(dir); }).find("is XML"), std::string::npos) << text;
+  }
+}
+
 TEST(TargetDirectory, MissingFolderAndFileAreClearErrors) {
   EXPECT_NE(ErrorOf([] { LoadTargetDirectory("/nonexistent/target_dir"); }).find("does not exist"),
             std::string::npos);

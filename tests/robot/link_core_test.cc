@@ -128,6 +128,13 @@ TEST_F(FrameFile, RoundTripsAndRefusesBrokenFrames) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("robot_from_world"), std::string::npos) << e.what();
   }
+  // A file that ends inside an XML header: OpenCV's XML parser dereferenced a null pointer
+  // (fuzz/fuzz_frame_yml.cc); frames are read as YAML only, and this one is refused.
+  std::ofstream(Path("truncated_xml.yml")) << "<?xml version=";
+  EXPECT_THROW(LoadRobotFrame(Path("truncated_xml.yml")), std::invalid_argument);
+  // Whatever the extension, a frame is written as YAML and reads back.
+  SaveRobotFrame(Path("frame.xml"), frame);
+  EXPECT_DOUBLE_EQ(LoadRobotFrame(Path("frame.xml")).rms_mm, 0.42);
   // A scaled "rotation" is not rigid.
   RobotFrame scaled = frame;
   scaled.robot_from_world.linear() *= 2.0;
