@@ -21,7 +21,7 @@ if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
 fi
 cmake --build "$BUILD_DIR" -j "${BUILD_JOBS:-2}" --target fuzzers
 status=0
-printf '%-14s %10s %8s %8s %s\n' fuzzer execs exec/s cov result
+printf '%-19s %10s %8s %8s %s\n' fuzzer execs exec/s cov result
 for source in fuzz/fuzz_*.cc; do
   what=$(basename "$source" .cc)
   what=${what#fuzz_}
@@ -40,6 +40,6 @@ for source in fuzz/fuzz_*.cc; do
   execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
   speed=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || echo 0)
-  printf '%-14s %10s %8s %8s %s\n' "$what" "${execs:-0}" "${speed:-0}" "${cov:-0}" "$result"
+  printf '%-19s %10s %8s %8s %s\n' "$what" "${execs:-0}" "${speed:-0}" "${cov:-0}" "$result"
 done
 exit $status
