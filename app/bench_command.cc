@@ -21,6 +21,7 @@ struct BenchArgs {
   std::string storages;
   std::string engines = "opencl,cpu,thesis";
   bool quick = false;
+  bool profile = false;
   perf::ThroughputBenchOptions bench;
   MatcherFlags flags;
 };
@@ -51,6 +52,7 @@ void RunBench(BenchArgs& args) {
   perf::ThroughputBenchOptions& bench = args.bench;
   bench.matcher = args.flags.options;
   bench.matcher.candidates.rectified = true;  // the benchmark pair is rectified
+  bench.matcher.opencl.profile = args.profile;
   bench.max_disparity = bench.matcher.candidates.max_disparity;
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {
@@ -121,6 +123,24 @@ void RunBench(BenchArgs& args) {
                     ? std::to_string(run["precision_1px"].get<double>()).substr(0, 5).c_str()
                     : "-");
   }
+  for (const auto& run : json["runs"]) {
+    if (!run.contains("profile")) continue;
+    const auto& profile = run["profile"];
+    std::printf("profile %s %s: weights %.2f ms (device %.2f); solve %.2f ms = device %.2f + host "
+                "gap %.2f (%.3f ms a step); %.1f launches and %.1f blocking reads a step\n",
+                run["case"].get<std::string>().c_str(), run["engine"].get<std::string>().c_str(),
+                profile["weights_ms"].get<double>(), profile["build_device_ms"].get<double>(),
+                profile["solve_ms"].get<double>(), profile["solve_device_ms"].get<double>(),
+                profile["solve_host_gap_ms"].get<double>(),
+                profile["host_gap_per_step_ms"].get<double>(),
+                run.value("launches_per_step", 0.0), run.value("blocking_reads_per_step", 0.0));
+    for (const auto& command : profile["commands"]) {
+      std::printf("  %-5s %-34s %6d x %9.1f us = %8.3f ms\n",
+                  command["phase"].get<std::string>().c_str(),
+                  command["command"].get<std::string>().c_str(), command["count"].get<int>(),
+                  command["us_each"].get<double>(), command["device_ms"].get<double>());
+    }
+  }
   std::printf("StereoSGBM (same pair, %d disparities): %.1f ms (x_stereo_sgbm in the JSON: each "
               "case's total / this)\n",
               json["stereo_sgbm"]["num_disparities"].get<int>(), json["stereo_sgbm"]["ms"].get<double>());
@@ -185,6 +205,11 @@ void AddBenchCommand(CLI::App& app) {
                   "Batch case: strips of the pair solved as independent networks (0 = none)")
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");
+  cmd->add_flag("--profile", args->profile,
+                "Time every OpenCL command with profiling events: per kernel device time, the "
+                "solve's host gap (wall - device), launches and blocking reads per step (printed, "
+                "and 'profile' per run in the JSON). Events add host time to every launch: compare "
+                "timings from runs without it");
   args->flags.AddTo(cmd);
   cmd->callback([args] { RunBench(*args); });
 }

@@ -82,7 +82,11 @@ class DeviceNetwork {
   DeviceNetwork(ocl::Runtime& runtime, const ProblemBatch& problems, const EnergyOptions& energy,
                 const DynamicsOptions& dynamics, std::size_t memory_budget_bytes,
                 const OpenClEngineOptions& engine = {WeightStorage::kCsr, 0})
-      : runtime_(runtime), queue_(runtime.queue()) {
+      : runtime_(runtime),
+        profile_(engine.profile),
+        queue_(engine.profile ? cl::CommandQueue(runtime.context(), runtime.device(),
+                                                 CL_QUEUE_PROFILING_ENABLE)
+                              : runtime.queue()) {
     if (auto error = energy.Check(); !error.empty()) throw std::invalid_argument(error);
     if (auto error = dynamics.Check(); !error.empty()) throw std::invalid_argument(error);
     Combine(problems, energy, dynamics, memory_budget_bytes);
@@ -104,11 +108,47 @@ class DeviceNetwork {
     std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
     queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(), changes.data());
     cl::Kernel& kernel = parity < 0 ? decisions_csr_ : decisions_blocked_[parity];
-    queue_.enqueueNDRangeKernel(kernel, cl::NullRange, decision_range_, local_);
-    queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes.size(), changes.data());
+    Launch(kernel, decision_range_, local_);
+    queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes.size(), changes.data(),
+                             nullptr, Record("read decision changes"));
     ++launches_;
     ++blocking_reads_;
     return changes;
+  }
+  // Enqueues `kernel`; with profiling on, keeps its event under the kernel's name.
+  void Launch(cl::Kernel& kernel, const cl::NDRange& global, const cl::NDRange& local) {
+    cl::Event* event = nullptr;
+    if (profile_) event = Record(kernel.getInfo<CL_KERNEL_FUNCTION_NAME>());
+    queue_.enqueueNDRangeKernel(kernel, cl::NullRange, global, local, nullptr, event);
+  }
+  // With profiling on, the slot for the event of the next command named `what`; else nullptr.
+  cl::Event* Record(std::string what) {
+    if (!profile_) return nullptr;
+    events_.emplace_back(std::move(what), cl::Event());
+    return &events_.back().second;
+  }
+  // Commands from here on count as the solve's (the ones before as the weight build's).
+  void StartSolveProfile() { solve_first_event_ = events_.size(); }
+  // Device time per command name from the profiling events (CL_PROFILING_COMMAND_START/END),
+  // build and solve apart; empty without profiling. Call after Finish().
+  std::vector<KernelTime> ProfiledTimes() const {
+    std::vector<KernelTime> times;
+    for (std::size_t e = 0; e < events_.size(); ++e) {
+      const std::string phase = e < solve_first_event_ ? "build" : "solve";
+      const auto& [name, event] = events_[e];
+      const cl_ulong begin = event.getProfilingInfo<CL_PROFILING_COMMAND_START>();
+      const cl_ulong end = event.getProfilingInfo<CL_PROFILING_COMMAND_END>();
+      auto it = std::find_if(times.begin(), times.end(), [&](const KernelTime& t) {
+        return t.command == name && t.phase == phase;
+      });
+      if (it == times.end()) {
+        times.push_back({name, phase, 0, 0.0});
+        it = std::prev(times.end());
+      }
+      ++it->count;
+      it->device_ms += end > begin ? static_cast<double>(end - begin) * 1e-6 : 0.0;
+    }
+    return times;
   }
   int launches() const { return launches_; }
   int blocking_reads() const { return blocking_reads_; }
@@ -138,25 +178,24 @@ class DeviceNetwork {
 
   void BuildBlocks() {
     if (storage_ == WeightStorage::kOnTheFly) return;
-    queue_.enqueueNDRangeKernel(build_blocks_, cl::NullRange, build_range_, local_);
+    Launch(build_blocks_, build_range_, local_);
     ++launches_;
   }
   // One fused step from state buffer `parity` into the other; column sums first when the
   // network has column uniqueness.
   void Step(int parity) {
     if (net_.layout.column_uniqueness) {
-      queue_.enqueueNDRangeKernel(column_sums_blocked_[parity], cl::NullRange, column_range_,
-                                  local_);
+      Launch(column_sums_blocked_[parity], column_range_, local_);
       ++launches_;
     }
-    queue_.enqueueNDRangeKernel(step_[parity], cl::NullRange, step_range_, step_local_);
+    Launch(step_[parity], step_range_, step_local_);
     ++launches_;
   }
   std::vector<float> RowEnergies() {
     std::vector<float> energies(static_cast<std::size_t>(n_networks()));
-    queue_.enqueueNDRangeKernel(segment_sum_, cl::NullRange, segment_range_, local_);
+    Launch(segment_sum_, segment_range_, local_);
     queue_.enqueueReadBuffer(network_energy_, CL_TRUE, 0, sizeof(float) * energies.size(),
-                             energies.data());
+                             energies.data(), nullptr, Record("read energies"));
     ++launches_;
     ++blocking_reads_;
     return energies;
@@ -192,20 +231,20 @@ class DeviceNetwork {
   int n_networks() const { return static_cast<int>(net_.network_offsets.size()) - 1; }
 
   void BuildWeights() {
-    queue_.enqueueNDRangeKernel(build_weights_, cl::NullRange, neuron_range_, local_);
+    Launch(build_weights_, neuron_range_, local_);
   }
   // line_sums then neuron_field: the field and energy terms of the current state.
   void Field() {
-    queue_.enqueueNDRangeKernel(line_sums_, cl::NullRange, line_range_, local_);
-    queue_.enqueueNDRangeKernel(neuron_field_, cl::NullRange, neuron_range_, local_);
+    Launch(line_sums_, line_range_, local_);
+    Launch(neuron_field_, neuron_range_, local_);
   }
-  void Euler() { queue_.enqueueNDRangeKernel(neuron_euler_, cl::NullRange, neuron_range_, local_); }
+  void Euler() { Launch(neuron_euler_, neuron_range_, local_); }
   // Per-network energies of the state the last Field() saw (blocking).
   std::vector<float> Energies() {
     std::vector<float> energies(static_cast<std::size_t>(n_networks()));
-    queue_.enqueueNDRangeKernel(segment_sum_, cl::NullRange, segment_range_, local_);
+    Launch(segment_sum_, segment_range_, local_);
     queue_.enqueueReadBuffer(network_energy_, CL_TRUE, 0, sizeof(float) * energies.size(),
-                             energies.data());
+                             energies.data(), nullptr, Record("read energies"));
     return energies;
   }
   void SetActive(const std::vector<int>& active) {
@@ -632,7 +671,10 @@ class DeviceNetwork {
   };
 
   ocl::Runtime& runtime_;
-  cl::CommandQueue& queue_;
+  const bool profile_;
+  cl::CommandQueue queue_;  // the runtime's, or with CL_QUEUE_PROFILING_ENABLE when profiling
+  std::vector<std::pair<std::string, cl::Event>> events_;  // profiling: every recorded command
+  std::size_t solve_first_event_ = 0;
   CombinedNetwork net_;
   HostCopies host_copies_;
   cl::Buffer neuron_row_, neuron_column_, row_offsets_, column_offsets_, column_neurons_,
@@ -735,6 +777,7 @@ void SolveCsr(DeviceNetwork& device, const DynamicsOptions& dynamics,
   device.BuildWeights();
   device.Finish();
   const double weights_ms = MillisecondsSince(start);
+  device.StartSolveProfile();
   start = Clock::now();
   std::vector<int> active(n, 1), stable(n, 0);
   std::vector<double> last_energy(n, 0.0);
@@ -767,6 +810,7 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
   device.BuildBlocks();
   device.Finish();
   const double weights_ms = MillisecondsSince(start);
+  device.StartSolveProfile();
   start = Clock::now();
   std::vector<int> active(n, 1), stable(n, 0), stop_parity(n, 0);
   std::vector<double> last_energy(n, 0.0);
@@ -872,7 +916,10 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
     } else {
       SolveBlocked(device, dynamics, &reports);
     }
+    device.Finish();
+    const std::vector<KernelTime> kernel_times = device.ProfiledTimes();
     for (SolveReport& report : reports) {
+      report.kernel_times = kernel_times;  // the batch's, shared
       report.weight_storage = std::string(WeightStorageName(device.storage()));
       report.step_bytes = device.StepBytes();
       report.launches = device.launches();

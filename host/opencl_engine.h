@@ -37,6 +37,10 @@ struct OpenClEngineOptions {
   /// objective); kPerWeight forces the GPU's kernel anywhere (so a CPU test covers it).
   enum class BlockBuild { kAuto, kPerRow, kPerWeight };
   BlockBuild block_build = BlockBuild::kAuto;
+  /// Time every kernel and convergence-check read on the device (a queue with
+  /// CL_QUEUE_PROFILING_ENABLE, one event per command): SolveReport::kernel_times, `bench
+  /// --profile`. Off by default: events cost host time on every launch.
+  bool profile = false;
 };
 
 class OpenClEngine {

@@ -9,6 +9,14 @@ namespace hnnstereo::hnn {
 
 enum class EngineKind { kThesis, kCpu, kOpenCL };
 
+/// Device time of one kind of OpenCL command, from profiling events (OpenClEngineOptions::profile).
+struct KernelTime {
+  std::string command;     ///< kernel function name, or "read energies" / "read decision changes"
+  std::string phase;       ///< "build" (weights) or "solve" (the dynamics)
+  int count = 0;           ///< commands enqueued
+  double device_ms = 0.0;  ///< sum of CL_PROFILING_COMMAND_END - START over them
+};
+
 struct SolveReport {
   std::string engine;                 ///< "thesis", "cpu" or "opencl"
   std::string device;                 ///< "host CPU" or the OpenCL device name
@@ -35,6 +43,10 @@ struct SolveReport {
   double step_bytes = 0.0;
   int launches = 0;
   int blocking_reads = 0;
+  /// OpenCL engine with OpenClEngineOptions::profile: device time per command (empty otherwise).
+  /// The solve's host gap is solve_ms minus the sum of its "solve" entries: launch latency,
+  /// blocking-read round trips and the host's convergence bookkeeping.
+  std::vector<KernelTime> kernel_times;
   double network_ms = 0.0;            ///< the layout (neighbour lists) and, on a device, its buffers
   double weights_ms = 0.0;            ///< weight construction
   double solve_ms = 0.0;              ///< the dynamics to convergence

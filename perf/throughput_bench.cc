@@ -230,6 +230,28 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
         run["weight_storage"] = last.solve.weight_storage;
         run["launches"] = last.solve.launches;
         run["blocking_reads"] = last.solve.blocking_reads;
+        run["launches_per_step"] = steps > 0 ? last.solve.launches / steps : 0.0;
+        run["blocking_reads_per_step"] = steps > 0 ? last.solve.blocking_reads / steps : 0.0;
+      }
+      if (!last.solve.kernel_times.empty()) {
+        // Where the last timed run's device time went (OpenClEngineOptions::profile): per
+        // command and phase, and the solve's host gap = its wall time - its device time.
+        nlohmann::json commands = nlohmann::json::array();
+        double solve_device_ms = 0.0, build_device_ms = 0.0;
+        for (const hnn::KernelTime& t : last.solve.kernel_times) {
+          commands.push_back({{"command", t.command}, {"phase", t.phase}, {"count", t.count},
+                              {"device_ms", t.device_ms},
+                              {"us_each", t.count > 0 ? 1000.0 * t.device_ms / t.count : 0.0}});
+          (t.phase == "solve" ? solve_device_ms : build_device_ms) += t.device_ms;
+        }
+        run["profile"] = {{"commands", commands},
+                          {"weights_ms", last.solve.weights_ms},
+                          {"build_device_ms", build_device_ms},
+                          {"solve_ms", last.solve.solve_ms},
+                          {"solve_device_ms", solve_device_ms},
+                          {"solve_host_gap_ms", last.solve.solve_ms - solve_device_ms},
+                          {"host_gap_per_step_ms",
+                           steps > 0 ? (last.solve.solve_ms - solve_device_ms) / steps : 0.0}};
       }
       if (machine_gbps > 0 && solve > 0) {
         run["roofline_fraction"] = bytes / (solve / 1000.0) / 1e9 / machine_gbps;

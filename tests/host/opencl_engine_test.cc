@@ -197,6 +197,40 @@ TEST_P(OpenClStorageTest, SolveAgreesWithTheCpuEngine) {
   }
 }
 
+// Profiling (bench --profile) times every command on the device without changing the solve:
+// the same state and steps as without it, one "solve" entry per kernel the solve launched, whose
+// counts add up to the engine's own launch count, and device times that fit in the wall time.
+TEST_P(OpenClStorageTest, ProfilingTimesEveryLaunchAndChangesNothing) {
+  const WeightStorage storage = GetParam();
+  const MatchingProblem problem = testing::SyntheticProblem(321, 150, 50, false, 4);
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  DynamicsOptions dynamics;
+  dynamics.stop_rule = DynamicsOptions::StopRule::kDecisions;
+  OpenClEngineOptions plain{storage, 0}, profiled{storage, 0};
+  profiled.profile = true;
+  const SolveReport a = OpenClEngine(*runtime_, plain).Solve(problem, energy, dynamics);
+  const SolveReport b = OpenClEngine(*runtime_, profiled).Solve(problem, energy, dynamics);
+  EXPECT_TRUE(a.kernel_times.empty());
+  ASSERT_FALSE(b.kernel_times.empty());
+  EXPECT_EQ(a.activation, b.activation);
+  EXPECT_EQ(a.iterations, b.iterations);
+  int kernel_launches = 0;
+  double solve_device_ms = 0.0;
+  for (const KernelTime& t : b.kernel_times) {
+    EXPECT_GT(t.count, 0) << t.command;
+    EXPECT_GE(t.device_ms, 0.0) << t.command;
+    EXPECT_TRUE(t.phase == "build" || t.phase == "solve") << t.phase;
+    if (t.command.rfind("read ", 0) != 0) kernel_launches += t.count;
+    if (t.phase == "solve") solve_device_ms += t.device_ms;
+  }
+  if (storage != WeightStorage::kCsr) {
+    EXPECT_EQ(kernel_launches, b.launches);  // the blocked solve counts its launches
+  }
+  EXPECT_GT(solve_device_ms, 0.0);
+  EXPECT_LE(solve_device_ms, b.solve_ms * 1.05 + 0.1);
+}
+
 // The GPU's block build (one work-item per weight), forced on the CPU device: the same solve as
 // the per-row build, for both objectives and for 4-slot (16-wide vector) and wider rows.
 TEST_P(OpenClStorageTest, PerWeightBlockBuildAgreesWithThePerRowBuild) {
