@@ -191,14 +191,32 @@ class DeviceNetwork {
     Launch(step_[parity], step_range_, step_local_);
     ++launches_;
   }
-  std::vector<float> RowEnergies() {
-    std::vector<float> energies(static_cast<std::size_t>(n_networks()));
+  // The convergence check of the blocked solve in one host round trip: per-network energies
+  // (segment_sum over the row energies the step wrote) and, under the kDecisions rule, the rows
+  // whose decision changed (`parity`: the state buffer the step read). The energies are read
+  // without blocking; the blocking read of the changes behind them on the in-order queue waits
+  // for both (before: two blocking reads a check).
+  void CheckState(const DynamicsOptions& dynamics, int parity, std::vector<float>* energies,
+                  std::vector<int>* changes) {
+    const bool decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
+    energies->assign(static_cast<std::size_t>(n_networks()), 0.0f);
     Launch(segment_sum_, segment_range_, local_);
-    queue_.enqueueReadBuffer(network_energy_, CL_TRUE, 0, sizeof(float) * energies.size(),
-                             energies.data(), nullptr, Record("read energies"));
     ++launches_;
+    queue_.enqueueReadBuffer(network_energy_, decisions ? CL_FALSE : CL_TRUE, 0,
+                             sizeof(float) * energies->size(), energies->data(), nullptr,
+                             Record("read energies"));
     ++blocking_reads_;
-    return energies;
+    if (!decisions) {
+      changes->clear();
+      return;
+    }
+    changes->assign(static_cast<std::size_t>(n_networks()), 0);
+    queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes->size(),
+                              changes->data());
+    Launch(decisions_blocked_[parity], decision_range_, local_);
+    ++launches_;
+    queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes->size(),
+                             changes->data(), nullptr, Record("read decision changes"));
   }
   // Final V and u per neuron: network p is read from the state buffer it stopped on.
   void ReadBlockedState(const std::vector<int>& stop_parity, std::vector<float>* V,
@@ -820,8 +838,9 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
     device.Step(parity);
     if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
       const std::vector<int> before = active;
-      const std::vector<float> energies = device.RowEnergies();
-      const std::vector<int> changes = device.DecisionChanges(dynamics, parity);
+      std::vector<float> energies;
+      std::vector<int> changes;
+      device.CheckState(dynamics, parity, &energies, &changes);
       const bool changed = CheckConvergence(step, energies, changes, device.rows_per_network(),
                                             dynamics, reports, &active, &last_energy, &stable,
                                             &n_active);
