@@ -29,9 +29,16 @@ set(launcher "")
 if(LAUNCHER)
   set(launcher -DCMAKE_CXX_COMPILER_LAUNCHER=${LAUNCHER})
 endif()
+# A sanitizer build (HNNSTEREO_SANITIZE) installs instrumented static libraries: a program that
+# links them needs the sanitizer's runtime too, as any user of such a build would.
+set(sanitize_flags "")
+if(SANITIZE)
+  set(sanitize_flags "-DCMAKE_CXX_FLAGS=-fsanitize=${SANITIZE}"
+                     "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=${SANITIZE}")
+endif()
 # Only the prefix: no path into the source or build tree reaches the example.
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/cpp -B ${example_build} -G Ninja
-    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} ${launcher})
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} ${launcher} ${sanitize_flags})
 run(${CMAKE_COMMAND} --build ${example_build})
 run(${example_build}/match_pair ${teddy}/im2.png ${teddy}/im6.png 64)
 set(example_output "${run_output}")
