@@ -297,19 +297,29 @@ TEST_F(CellPageServerTest, AClientThatNeverReadsDoesNotHoldUpPublishing) {
 // server's workers for the first 5 s, so a status request right after 200 of them is answered
 // at once (without it: 1.5 s behind 8 of them, no answer in 20 s behind 200). After the 5 s
 // they are accepted and do queue (read timeout 5 s each); that is not fixed (docs/robot.md).
-TEST_F(CellPageServerTest, SilentConnectionsDoNotQueueInFrontOfARequest) {
-  PublishScene();
-  CellPageServer server(board_, {});
-  std::vector<int> silent;
-  for (int k = 0; k < 200; ++k) {
+// `count` loopback connections to `port` that never send anything (fewer if one fails).
+std::vector<int> ConnectSilently(int port, int count) {
+  std::vector<int> fds;
+  for (int k = 0; k < count; ++k) {
     const int fd = socket(AF_INET, SOCK_STREAM, 0);
     sockaddr_in address{};
     address.sin_family = AF_INET;
-    address.sin_port = htons(static_cast<std::uint16_t>(server.port()));
+    address.sin_port = htons(static_cast<std::uint16_t>(port));
     address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
-    silent.push_back(fd);
+    if (connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+      close(fd);
+      break;
+    }
+    fds.push_back(fd);
   }
+  return fds;
+}
+
+TEST_F(CellPageServerTest, SilentConnectionsDoNotQueueInFrontOfARequest) {
+  PublishScene();
+  CellPageServer server(board_, {});
+  const std::vector<int> silent = ConnectSilently(server.port(), 200);
+  ASSERT_EQ(silent.size(), 200u);
   httplib::Client client("127.0.0.1", server.port());
   client.set_read_timeout(3, 0);
   const auto start = std::chrono::steady_clock::now();
@@ -329,16 +339,8 @@ TEST_F(CellPageServerTest, SilentConnectionsDoNotQueueInFrontOfARequest) {
 TEST_F(CellPageServerTest, SilentConnectionsPastTheAcceptDeferralDoNotStallARequest) {
   PublishScene();
   CellPageServer server(board_, {});
-  std::vector<int> silent;
-  for (int k = 0; k < 200; ++k) {
-    const int fd = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_port = htons(static_cast<std::uint16_t>(server.port()));
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
-    silent.push_back(fd);
-  }
+  const std::vector<int> silent = ConnectSilently(server.port(), 200);
+  ASSERT_EQ(silent.size(), 200u);
   std::this_thread::sleep_for(std::chrono::seconds(8));
   httplib::Client client("127.0.0.1", server.port());
   client.set_read_timeout(10, 0);

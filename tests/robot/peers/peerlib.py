@@ -22,6 +22,15 @@ def scratch_dir(name):
     return tempfile.mkdtemp(prefix=name + "-", dir=TMP_ROOT)
 
 
+def render_scene(seed, out):
+    """`hnnstereo render --seed SEED --out OUT`; returns the true parts of truth.json."""
+    render = subprocess.run([BINARY, "render", "--seed", str(seed), "--out", out],
+                            capture_output=True, text=True, timeout=120)
+    check(render.returncode == 0, "render failed: " + render.stdout + render.stderr)
+    with open(os.path.join(out, "truth.json")) as f:
+        return json.load(f)["objects"]
+
+
 def write_frame(path, robot_from_world=None, workspace_min=(-400, -400, 0),
                 workspace_max=(400, 400, 500), rms_mm=0.0):
     """FRAME.yml in OpenCV FileStorage YAML (ARCHITECTURE.md). Identity transform by default."""

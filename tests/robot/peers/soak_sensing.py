@@ -72,11 +72,7 @@ def main():
     check(cycles >= 2 * RESTART_EVERY, "HNNSTEREO_SOAK_CYCLES must be >= %d" % (2 * RESTART_EVERY))
     work = peerlib.scratch_dir("soak-sensing")
     scene = os.path.join(work, "scene")
-    render = subprocess.run([peerlib.BINARY, "render", "--seed", "100", "--out", scene],
-                            capture_output=True, text=True, timeout=120)
-    check(render.returncode == 0, "render failed: " + render.stdout + render.stderr)
-    with open(os.path.join(scene, "truth.json")) as f:
-        parts = len(json.load(f)["objects"])
+    parts = len(peerlib.render_scene(100, scene))
     frame = os.path.join(work, "frame.yml")
     peerlib.write_frame(frame, workspace_min=(-1000, -1000, 0), workspace_max=(1500, 1500, 600))
     report = os.path.join(work, "report.json")

@@ -7,7 +7,6 @@ boxes), tallest first, on both cycles.
 import json
 import math
 import os
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -34,11 +33,7 @@ def main():
     scene = os.path.join(work, "scene")
     # Seed 100 is one of the position-sensing acceptance scenes (docs/position_sensing.md): this
     # test is about the chain to the PLC, sensing's recall is measured there.
-    render = subprocess.run([peerlib.BINARY, "render", "--seed", "100", "--out", scene],
-                            capture_output=True, text=True, timeout=120)
-    check(render.returncode == 0, "render failed: " + render.stdout + render.stderr)
-    with open(os.path.join(scene, "truth.json")) as f:
-        truth = json.load(f)["objects"]
+    truth = peerlib.render_scene(100, scene)
     check(len(truth) >= 3, "the scene has %d parts" % len(truth))
 
     frame = os.path.join(work, "frame.yml")
