@@ -115,6 +115,22 @@ def run_match(binary, left, right, max_disparity, extra, cache=None, name=""):
     return data
 
 
+def sgbm_agreement(left, right, max_disparity, uniqueness):
+    """Per pixel: StereoSGBM's disparity as `eval` runs it (5x5, MODE_HH, P1 = 8*25, P2 = 32*25,
+    disp12MaxDiff 1, speckle 100/2) at this uniqueness ratio; NaN where it gives none. For the
+    --sgbm-features experiment (docs/accuracy.md): does a second matcher's opinion rank the
+    HNN's matches better? Needs the cv2 module."""
+    import cv2
+    grey_l = cv2.imread(left, cv2.IMREAD_GRAYSCALE)
+    grey_r = cv2.imread(right, cv2.IMREAD_GRAYSCALE)
+    n = max(16, 16 * ((max_disparity + 1 + 15) // 16))
+    sgbm = cv2.StereoSGBM_create(0, n, 5, 8 * 25, 32 * 25, 1, 63, uniqueness, 100, 2,
+                                 cv2.STEREO_SGBM_MODE_HH)
+    d = sgbm.compute(grey_l, grey_r).astype(np.float64) / 16.0
+    d[d < 0] = np.nan
+    return d
+
+
 def sigmoid(z):
     return 1.0 / (1.0 + np.exp(-z))
 
@@ -155,6 +171,9 @@ def main():
     parser.add_argument("--cache", default="", help="keep/reuse the match reports in this folder")
     parser.add_argument("--features", default=",".join(FEATURES),
                         help="comma-separated subset of the features to fit")
+    parser.add_argument("--sgbm-features", action="store_true",
+                        help="experiment: add StereoSGBM's agreement (within 1 px) and validity at "
+                             "uniqueness 0 and 10 as features (needs cv2)")
     args = parser.parse_args()
     FEATURES[:] = [f for f in args.features.split(",") if f]
     pairs = {}
@@ -180,6 +199,14 @@ def main():
         disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
         correct = (np.abs(disparity - np.round(truth)) <= 1.0)[known].astype(np.float64)
         X = feature_columns(rows[known], col, FEATURES)
+        if args.sgbm_features:
+            extra = []
+            for uniqueness in (0, 10):
+                sgbm = sgbm_agreement(left, right, max_disparity, uniqueness)[yl, xl][known]
+                valid = np.isfinite(sgbm)
+                agree = valid & (np.abs(np.where(valid, sgbm, 0.0) - disparity[known]) <= 1.0)
+                extra += [agree.astype(np.float64), valid.astype(np.float64)]
+            X = np.hstack([X, np.stack(extra, axis=1)])
         pairs[name] = (X, correct, rows[known][:, col["confidence"]])
     names = list(pairs)
     X_all = np.vstack([pairs[n][0] for n in names])
