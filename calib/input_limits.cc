@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -349,9 +350,37 @@ std::string TextInputLimits::Check() const {
 }
 
 std::string CheckYamlText(const std::string& text) {
+  if (text.find('\0') != std::string::npos) return "contains a NUL byte; only YAML text is read";
   // cv::FileStorage skips a UTF-8 byte order mark, then reads "<?xml" as XML.
   const std::size_t start = text.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;
   if (text.compare(start, 5, "<?xml") == 0) return "is XML; only OpenCV YAML is read";
+  bool before_first_key = true;
+  bool dashes_seen = false;
+  int number = 0;
+  for (std::size_t at = start; at < text.size();) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    std::string line = text.substr(at, end - at);
+    at = end + 1;
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::string where = "line " + std::to_string(number) + ": ";
+    if (!before_first_key) {
+      if (line.rfind("...", 0) == 0) return where + "'...' ends the YAML document; only one is read";
+      continue;
+    }
+    const std::size_t first = line.find_first_not_of(' ');
+    if (first == std::string::npos || line[first] == '#' || line[first] == '%') continue;
+    if (!dashes_seen && line.compare(first, 3, "---") == 0 &&
+        line.find_first_not_of(' ', first + 3) == std::string::npos) {
+      dashes_seen = true;
+      continue;
+    }
+    const unsigned char c = static_cast<unsigned char>(line[0]);
+    if (first != 0 || !(std::isalnum(c) || c == '_')) {
+      return where + "the top level must be a map whose keys start in column 1 (OpenCV YAML)";
+    }
+    before_first_key = false;
+  }
   return {};
 }
 

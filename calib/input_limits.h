@@ -66,10 +66,18 @@ cv::Mat ReadImageFileWithin(const std::string& path, int flags, const ImageLimit
 std::string CheckMatrixNode(const cv::FileNode& node, std::size_t max_elements);
 
 /// Empty when `text` (a whole CAL.yml, target.yml or FRAME.yml) may be handed to
-/// cv::FileStorage as YAML, else a reason. OpenCV picks its parser from the first bytes whatever
-/// format flag it is given, and OpenCV 4.6's XML parser dereferences a null pointer on a text
-/// that ends inside its header ("<?xml version=", found by fuzz_frame_yml; CAL.yml and target.yml
-/// crashed on it too): the project's files are YAML, so text OpenCV would parse as XML is refused.
+/// cv::FileStorage as YAML, else a reason. OpenCV 4.6's parsers fail on two kinds of text
+/// (found by fuzz_frame_yml; CAL.yml and target.yml failed on the same inputs):
+///  - OpenCV picks its parser from the first bytes whatever format flag it is given, and its XML
+///    parser dereferences a null pointer on a text that ends inside its header ("<?xml version=").
+///    Text OpenCV would read as XML is refused.
+///  - After the first YAML document OpenCV skips three characters (a "---" or "..." marker) and
+///    loops forever when it then stands on a '-' that does not start "---" (a document whose top
+///    level ends before the end of the text: an indented top level, or "...-"). The project's
+///    files are one document whose top level is a block map from column 1, as OpenCV writes
+///    them: only comments, directives ('%') and one "---" may come before the first key, the first
+///    key starts in column 1 with a letter, digit or '_', and no line starts with "...".
+/// NUL bytes are refused too (OpenCV would stop reading at the first).
 std::string CheckYamlText(const std::string& text);
 
 /// Reads the whole text file `path` (named `what` in messages, e.g. "calibration file").

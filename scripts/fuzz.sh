@@ -31,8 +31,9 @@ for source in fuzz/fuzz_*.cc; do
   cp -n fuzz/corpus/"$what"/* "$work"/ 2>/dev/null || true
   log="$BUILD_DIR/fuzz/$what.log"
   result=clean
-  # -rss_limit_mb: a parser that allocates beyond 2 GB for a small input is a finding too.
-  if ! "$BUILD_DIR/fuzz/fuzz_$what" "$work" -max_total_time="$SECONDS_EACH" -rss_limit_mb=2048 \
+  # -rss_limit_mb: a parser that allocates beyond 2 GB for a small input is a finding too;
+  # -timeout: one input running 10 s is a hang (libFuzzer's default waits 1200 s).
+  if ! "$BUILD_DIR/fuzz/fuzz_$what" "$work" -max_total_time="$SECONDS_EACH" -rss_limit_mb=2048 -timeout=10 \
       -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1; then
     result="FOUND (see $log, $findings/)"
     status=1

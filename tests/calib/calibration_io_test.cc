@@ -4,6 +4,9 @@
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "calib/calibration.h"
 #include "calib/circle_calibration.h"
@@ -134,6 +137,25 @@ TEST(CalibrationFile, XmlIsRefusedNotACrash) {
         << text;
     WriteText(dir + "/target.yml", text);
     EXPECT_NE(ErrorOf([&] { LoadTargetDirectory(dir); }).find("is XML"), std::string::npos) << text;
+  }
+}
+
+// OpenCV's YAML parser looped forever when the first document's top level ended before the end
+// of the text and a '-' stood three characters on (fuzz_frame_yml): an indented top level, or
+// "...-" after it. CAL.yml and target.yml are one document whose keys start in column 1.
+TEST(CalibrationFile, YamlThatHungOpenCvIsRefused) {
+  const std::string dir = testing::TemporaryDirectory("hanging_yaml");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"%YAML:1.0\n -o\nK---\no\n", "line 2: the top level must be a map"},
+      {"%YAML:1.0\n a: 1\nbcd-x\nz\n", "line 2: the top level must be a map"},
+      {"%YAML:1.0\na: 1\n...-\nz\n", "line 3: '...' ends the YAML document"},
+      {std::string("a: 1\0\n", 6), "NUL byte"}};
+  for (const auto& [text, reason] : cases) {
+    WriteText(dir + "/cal.yml", text);
+    EXPECT_NE(ErrorOf([&] { LoadCalibration(dir + "/cal.yml"); }).find(reason), std::string::npos)
+        << text;
+    WriteText(dir + "/target.yml", text);
+    EXPECT_NE(ErrorOf([&] { LoadTargetDirectory(dir); }).find(reason), std::string::npos) << text;
   }
 }
 

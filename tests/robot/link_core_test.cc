@@ -132,6 +132,12 @@ TEST_F(FrameFile, RoundTripsAndRefusesBrokenFrames) {
   // (fuzz/fuzz_frame_yml.cc); frames are read as YAML only, and this one is refused.
   std::ofstream(Path("truncated_xml.yml")) << "<?xml version=";
   EXPECT_THROW(LoadRobotFrame(Path("truncated_xml.yml")), std::invalid_argument);
+  // OpenCV's YAML parser looped forever on a top level that ends before the text does and a '-'
+  // three characters on (fuzz_frame_yml): refused before OpenCV sees it.
+  std::ofstream(Path("hang.yml")) << "%YAML:1.0\n -o\nK---\no\n";
+  EXPECT_THROW(LoadRobotFrame(Path("hang.yml")), std::invalid_argument);
+  std::ofstream(Path("hang2.yml")) << "%YAML:1.0\nrms_mm: 0\n...-\nz\n";
+  EXPECT_THROW(LoadRobotFrame(Path("hang2.yml")), std::invalid_argument);
   // Whatever the extension, a frame is written as YAML and reads back.
   SaveRobotFrame(Path("frame.xml"), frame);
   EXPECT_DOUBLE_EQ(LoadRobotFrame(Path("frame.xml")).rms_mm, 0.42);
