@@ -135,7 +135,9 @@ class DeviceNetwork {
     std::vector<KernelTime> times;
     for (std::size_t e = 0; e < events_.size(); ++e) {
       const std::string phase = e < solve_first_event_ ? "build" : "solve";
-      const auto& [name, event] = events_[e];
+      // Not a structured binding: clang before 16 cannot capture one in the lambda below.
+      const std::string& name = events_[e].first;
+      const cl::Event& event = events_[e].second;
       const cl_ulong begin = event.getProfilingInfo<CL_PROFILING_COMMAND_START>();
       const cl_ulong end = event.getProfilingInfo<CL_PROFILING_COMMAND_END>();
       auto it = std::find_if(times.begin(), times.end(), [&](const KernelTime& t) {
