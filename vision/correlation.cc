@@ -162,9 +162,11 @@ namespace {
 // two 8-lane vectors (GCC/Clang vector extensions, lowered to whatever the target has) over the
 // whole window; the rest one by one. The sums are exact integers, so neither the order nor an
 // FMA changes them. Cloned for AVX2 where the CPU has it (x86-64 function
-// multiversioning: the loader picks the clone).
+// multiversioning: the loader picks the clone). Not under ThreadSanitizer: the clone resolver
+// (an ifunc) runs while the loader relocates the program, before TSan's runtime exists, and
+// its instrumented entry crashed every TSan binary at start.
 typedef float Lanes8 __attribute__((vector_size(32)));
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
 __attribute__((target_clones("avx2", "default")))
 #endif
 void RunDotsKernel(int window, const float* fixed, std::size_t fixed_stride,
