@@ -14,6 +14,10 @@
 #include <string>
 #include <vector>
 
+#if defined(__SANITIZE_THREAD__)
+#include <opencv2/core/utility.hpp>
+#endif
+
 #include "app/cli_support.h"
 #include "app/commands.h"
 
@@ -75,6 +79,14 @@ CLI::App* FindSubcommand(CLI::App& app, const std::string& name) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__SANITIZE_THREAD__)
+  // ThreadSanitizer builds only (scripts/test.sh --sanitize thread): cv::parallel_for_ runs on
+  // Debian's TBB, which is not instrumented, so TSan cannot see its workers' join and reports
+  // OpenCV's own loop hand-back (the body's std::function freed after the loop) as a race. The
+  // numerics' loops run on the calling thread; the project's own threads (robot links, the serve
+  // loop, the web page's workers) are what a TSan run checks.
+  cv::setNumThreads(0);
+#endif
   CLI::App app{
       "hnnstereo - stereo matching with a continuous Hopfield network (OpenCL), calibration and "
       "3D position sensing for robot pick cells.\n"

@@ -44,15 +44,6 @@ if [ -n "$SANITIZE" ]; then
       ctest_args=(-E "python_hnnstereo")
     fi
   fi
-  if [ "$SANITIZE" = thread ]; then
-    # cv::parallel_for_ runs on Debian's TBB, which is not instrumented: TSan cannot see its
-    # workers' join and reports OpenCV's own hand-back (the loop body's std::function freed after
-    # the loop) as a race, and would report every buffer the workers filled. The numerics' loops
-    # run on the calling thread here (OpenCV reads OPENCV_FOR_THREADS_NUM once at start); the
-    # project's own threads - the robot links, the serve loop, the web page's workers - are what
-    # this run checks.
-    export OPENCV_FOR_THREADS_NUM=${OPENCV_FOR_THREADS_NUM:-1}
-  fi
 fi
 bash scripts/setup.sh
 BUILD_DIR=${BUILD_DIR:-build}
