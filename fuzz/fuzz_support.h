@@ -6,9 +6,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 
 namespace hnnstereo::fuzz {
 
@@ -16,13 +18,19 @@ inline std::string AsText(const std::uint8_t* data, std::size_t size) {
   return std::string(reinterpret_cast<const char*>(data), size);
 }
 
-/// A folder of this fuzzer process (removed and made again on first use).
+/// A folder of this fuzzer process (removed and made again on first use, removed at exit).
 inline const std::filesystem::path& ScratchFolder() {
   static const std::filesystem::path folder = [] {
     const std::filesystem::path path = std::filesystem::temp_directory_path() /
                                        ("hnnstereo_fuzz_" + std::to_string(::getpid()));
     std::filesystem::remove_all(path);
     std::filesystem::create_directories(path);
+    std::atexit([] {
+      std::error_code ignored;
+      std::filesystem::remove_all(std::filesystem::temp_directory_path() /
+                                      ("hnnstereo_fuzz_" + std::to_string(::getpid())),
+                                  ignored);
+    });
     return path;
   }();
   return folder;
