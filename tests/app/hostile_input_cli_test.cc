@@ -140,6 +140,18 @@ TEST_F(HostileInputCli, OnePixelImageIsRefused) {
   ExpectRefused(MatchLeft(Path("input_thin.webp")), 1, "is 600x4 pixels decoded, smaller than");
 }
 
+TEST_F(HostileInputCli, MalformedDicomIsRefusedNotAnAbort) {
+  // fuzz_image_loader: 132 bytes, a TIFF byte order mark, zeros, "DICM" at offset 128. OpenCV
+  // gave it to GDCM, whose reader asserted (is.good()) and aborted the process with no message
+  // (SIGABRT, exit 134).
+  std::string dicom("II\0*P\0\xb8", 7);
+  dicom.resize(126, '\0');
+  dicom += "5\nDICM";
+  ASSERT_EQ(dicom.size(), 132u);
+  WriteFile("input_dicom.tif", dicom);
+  ExpectRefused(MatchLeft(Path("input_dicom.tif")), 1, "is a DICOM file; DICOM is not read");
+}
+
 TEST_F(HostileInputCli, OversizedFileIsRefusedWithoutReadingIt) {
   // A sparse 300 MB file that starts like a PNG: refused on its size (limit 256 MiB).
   {
