@@ -207,18 +207,8 @@ class DeviceNetwork {
     queue_.enqueueReadBuffer(network_energy_, decisions ? CL_FALSE : CL_TRUE, 0,
                              sizeof(float) * energies->size(), energies->data(), nullptr,
                              Record("read energies"));
-    ++blocking_reads_;
-    if (!decisions) {
-      changes->clear();
-      return;
-    }
-    changes->assign(static_cast<std::size_t>(n_networks()), 0);
-    queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes->size(),
-                              changes->data());
-    Launch(decisions_blocked_[parity], decision_range_, local_);
-    ++launches_;
-    queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes->size(),
-                             changes->data(), nullptr, Record("read decision changes"));
+    if (!decisions) ++blocking_reads_;
+    *changes = DecisionChanges(dynamics, parity);  // empty unless kDecisions
   }
   // Final V and u per neuron: network p is read from the state buffer it stopped on.
   void ReadBlockedState(const std::vector<int>& stop_parity, std::vector<float>* V,
