@@ -93,6 +93,14 @@ void RunBench(BenchArgs& args) {
     std::printf("machine read bandwidth: %.1f GB/s (%s)\n", json["machine_read_gbps"].get<double>(),
                 json["machine_read_method"].get<std::string>().c_str());
   }
+  if (json.contains("device_read_gbps")) {
+    std::printf("device read bandwidth: %.1f GB/s (%s)\n", json["device_read_gbps"].get<double>(),
+                json["device_read_method"].get<std::string>().c_str());
+  }
+  if (json.contains("opencl_roofline_gbps")) {
+    std::printf("opencl roofline: %.1f GB/s = %s\n", json["opencl_roofline_gbps"].get<double>(),
+                json["opencl_roofline_basis"].get<std::string>().c_str());
+  }
   std::printf("%-12s %-20s %7s %9s %9s %8s %8s %5s %8s %6s %13s %8s\n", "case", "engine", "neurons",
               "conn", "total ms", "weights", "solve", "steps", "ms/step", "roof", "energy",
               "prec1px");

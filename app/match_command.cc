@@ -9,6 +9,7 @@
 #include "app/commands.h"
 #include "calib/atomic_file.h"
 #include "calib/calibration.h"
+#include "host/network_file.h"
 #include "vision/image.h"
 #include "vision/matcher_presets.h"
 #include "vision/match_io.h"
@@ -21,7 +22,7 @@ namespace hnnstereo::app {
 namespace {
 
 struct MatchArgs {
-  std::string left, right, calib, out, report, overlay;
+  std::string left, right, calib, out, report, overlay, save_network;
   bool rectified = false;
   bool quiet = false;
   std::string config;  // consumed by ExpandConfigArguments in main
@@ -33,7 +34,8 @@ void RunMatch(MatchArgs& args) {
   vision::MatcherOptions& options = args.flags.options;
   // The whole setup is checked before any work (each check is milliseconds): the outputs, the
   // pair, the disparity range, the device.
-  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay}},
+  CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay},
+                        {"--save-network", args.save_network}},
                        {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
   const vision::LoadedImage left = vision::LoadImage(args.left);
   const vision::LoadedImage right = vision::LoadImage(args.right);
@@ -81,6 +83,15 @@ void RunMatch(MatchArgs& args) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }
 
+  // The network as solved (host/network_file.h), kept in memory and written with the outputs.
+  std::string network_bytes;
+  if (!args.save_network.empty()) {
+    options.network_observer = [&network_bytes](const hnn::MatchingProblem& problem,
+                                                const hnn::EnergyOptions& energy,
+                                                const hnn::DynamicsOptions& dynamics) {
+      network_bytes = hnn::SerializeNetwork(problem, energy, dynamics);
+    };
+  }
   // The library facade's pipeline (undistort, match, refine, back to the pixels as given).
   const vision::MatchReport report = api::RunMatchPipeline(
       left.grey, right.grey, calibration.get(), options, args.flags.refinement, runtime.get());
@@ -94,6 +105,7 @@ void RunMatch(MatchArgs& args) {
     json["right"] = args.right;
     calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
   }
+  if (!args.save_network.empty()) calib::WriteFileAtomically(args.save_network, network_bytes);
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(args.overlay,
                                vision::DrawMatchOverlay(left.original, right.original, report));
@@ -141,6 +153,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output MATCHES.csv")->required();
   cmd->add_option("--report", args->report, "Output REPORT.json");
   cmd->add_option("--overlay", args->overlay, "Output PNG: features and matched features");
+  cmd->add_option("--save-network", args->save_network,
+                  "Output: the Hopfield network as solved (problem, energy and dynamics; binary "
+                  "HNNET1) - replay and time it on any OpenCL device with hnnstereo_replay "
+                  "(docs/benchmark.md)");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
   args->flags.AddTo(cmd);
   cmd->add_option("--config", args->config,

@@ -292,11 +292,16 @@ class DeviceNetwork {
   // stored weights (the disparity network's top-K rows, the dense network), else CSR. Measured
   // on Teddy, all edges (docs/engine.md): half blocks 374 ms whole match, float 447 ms, CSR
   // 865 ms; the same matches.
+  // On a GPU also only rows of at most 8 slots: measured on an H200 (docs/engine.md, "On a
+  // GPU"), the dense 60 x 60 network's 60-slot blocks took 142-207 ms to solve against 4.2 ms
+  // for CSR, whose one work-item per neuron keeps the card busy where 60 rows cannot.
   WeightStorage ResolveStorage(WeightStorage asked) {
     row_pad_ = std::max(4, (MaxRowCount() + 3) / 4 * 4);
     const NetworkLayout& L = net_.layout;
     const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
     if (asked != WeightStorage::kAuto) return asked;
+    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
+    if (gpu && row_pad_ > 8) return WeightStorage::kCsr;
     return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
                ? WeightStorage::kBlockedHalf
                : WeightStorage::kCsr;
@@ -430,22 +435,33 @@ class DeviceNetwork {
     // Rows per work-item: a GPU wants one row per work-item in work-groups of 64; on a CPU
     // device PoCL runs each work-group of one work-item as a loop over its rows with the
     // explicit vector loads (no cross-work-item vectorisation to undo).
+    // A GPU (or BlockStep::kRowPerGroup): one work-group of kStepGroup lanes per row instead.
+    const bool row_per_group =
+        engine.block_step == OpenClEngineOptions::BlockStep::kRowPerGroup ||
+        (engine.block_step == OpenClEngineOptions::BlockStep::kAuto && gpu);
+    if (row_per_group) rows_per_item = 1;
     if (rows_per_item <= 0) rows_per_item = gpu ? 1 : std::clamp(L.n_rows / 256, 1, 64);
     const std::size_t items = (rows + static_cast<std::size_t>(rows_per_item) - 1) /
                               static_cast<std::size_t>(rows_per_item);
-    const std::size_t step_local = gpu ? 64 : 1;
+    const std::size_t step_local = row_per_group ? kStepGroup : gpu ? 64 : 1;
     step_local_ = cl::NDRange(step_local);
-    step_range_ = cl::NDRange((items + step_local - 1) / step_local * step_local);
+    step_range_ = row_per_group ? cl::NDRange(rows * kStepGroup)
+                                : cl::NDRange((items + step_local - 1) / step_local * step_local);
     const cl_float two_B = static_cast<cl_float>(2.0 * energy.B);
     const cl_float two_C = static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0);
     for (int b = 0; b < 2; ++b) {
-      step_[b] = cl::Kernel(program, "neuron_step_blocked");
+      step_[b] = cl::Kernel(program, row_per_group ? "neuron_step_blocked_group"
+                                                   : "neuron_step_blocked");
       SetArgs(step_[b], static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
               row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_,
               slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
               two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
               V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_);
+      if (row_per_group) {  // the lanes' partial inputs: kStepGroup x ROW_PAD floats
+        step_[b].setArg(25, cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
+                                      static_cast<std::size_t>(row_pad_)));
+      }
       column_sums_blocked_[b] = cl::Kernel(program, "column_sums_blocked");
       SetArgs(column_sums_blocked_[b], static_cast<cl_int>(L.n_columns), column_offsets_,
               column_slots_, V_state_[b], column_sums_);

@@ -16,9 +16,13 @@
 
 namespace hnnstereo::hnn {
 
+/// Work-items per row of the GPU's blocked step (OpenClEngineOptions::BlockStep): one warp.
+inline constexpr int kStepGroup = 32;
+
 /// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
 enum class WeightStorage {
-  kAuto,          ///< row blocks (half) when padding wastes < 2x, else CSR
+  kAuto,          ///< row blocks (half) when padding wastes < 2x (on a GPU: and rows of <= 8
+                  ///< slots), else CSR
   kCsr,           ///< per-neuron contiguous weights, one work-item per neuron, 3 launches a step
   kBlockedFloat,  ///< ROW_PAD x ROW_PAD float blocks per row pair, one fused launch a step
   kBlockedHalf,   ///< the same blocks in half precision (vload_half), float accumulation
@@ -37,6 +41,12 @@ struct OpenClEngineOptions {
   /// objective); kPerWeight forces the GPU's kernel anywhere (so a CPU test covers it).
   enum class BlockBuild { kAuto, kPerRow, kPerWeight };
   BlockBuild block_build = BlockBuild::kAuto;
+  /// Row blocks: how the fused step is spread. kAuto: one work-group of kStepGroup work-items
+  /// per row on a GPU (neuron_step_blocked_group: neighbouring lanes read neighbouring blocks),
+  /// runs of whole rows per work-item on a CPU device (neuron_step_blocked); kRowPerGroup
+  /// forces the GPU's kernel anywhere (so a CPU test covers it).
+  enum class BlockStep { kAuto, kRowPerItem, kRowPerGroup };
+  BlockStep block_step = BlockStep::kAuto;
   /// Time every kernel and convergence-check read on the device (a queue with
   /// CL_QUEUE_PROFILING_ENABLE, one event per command): SolveReport::kernel_times, `bench
   /// --profile`. Off by default: events cost host time on every launch.

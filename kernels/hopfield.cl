@@ -340,6 +340,44 @@ __kernel void column_sums_blocked(const int n_columns,
   column_sums[k] = sum;
 }
 
+// The rest of row i's Euler step once `acc` holds its compatibility input sum_b W_ab V_b: the
+// row and column uniqueness terms (eq. 6.11), the bias, the row's energy term at V_in (eq. 6.10)
+// and the step of u and V into the other state buffer.
+void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
+                __global const int* slot_column, __global const float* column_sums,
+                const float two_B, const float two_C, const float dt, const float inv_tau,
+                const float alpha, __global const float* V_in, __global const float* u_in,
+                __global float* V_out, __global float* u_out, __global float* row_energy) {
+  const int base = i * ROW_PAD;
+  float row_sum = 0.0f;
+  for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
+  float energy = 0.0f;
+  for (int k = 0; k < ni; ++k) {
+    const float va = V_in[base + k];
+    float sum = acc[k] - two_B * (row_sum - va);
+    if (two_C != 0.0f) sum -= two_C * (column_sums[slot_column[base + k]] - va);
+    const float ia = slot_bias[base + k];
+    energy -= va * (0.5f * sum + ia);
+    const float ua = u_in[base + k];
+    const float next = ua + dt * (-ua * inv_tau + sum + ia);
+    u_out[base + k] = next;
+    V_out[base + k] = activate(next, alpha, va);
+  }
+  row_energy[i] = energy;
+}
+
+// Block t of a row times V of its neighbour row j, added to acc (slots k of the row): the same
+// arithmetic as the per-item step's inner loop (column q of the block times V[j,q]).
+#if WEIGHTS == 1
+#define BLOCK4(offset) vload_half4(0, blocks + (offset))
+#define BLOCK16(n) vload_half16((n), blocks)
+#define BLOCK_TYPE half
+#else
+#define BLOCK4(offset) vload4(0, blocks + (offset))
+#define BLOCK16(n) vload16((n), blocks)
+#define BLOCK_TYPE float
+#endif
+
 // One fused Euler step for rows [item * rows_per_item, +rows_per_item): reads V_in and u_in,
 // writes V_out, u_out and the energy term of every row at V_in (E = sum of row_energy, eq. 6.10).
 __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
@@ -368,7 +406,6 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
   const int first = get_global_id(0) * rows_per_item;
   const int last = min(n_rows, first + rows_per_item);
   for (int i = first; i < last; ++i) {
-    const int base = i * ROW_PAD;
     const int ni = row_count[i];
     // A frozen (converged) network is not touched: the state buffer it stopped on keeps V_s.
     if (!active[network_of_row[i]]) continue;
@@ -398,25 +435,15 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
       // column q times V[j,q] with V[j] spread to (V0 x4, V1 x4, V2 x4, V3 x4); the four
       // columns are summed once after the loop. One conversion and one FMA a block.
       const float4 vj = vload4(j, V_in);
-#if WEIGHTS == 1
-      acc16 += vload_half16(t, blocks) * vj.s0000111122223333;
-#else
-      acc16 += vload16(t, blocks) * vj.s0000111122223333;
-#endif
+      acc16 += BLOCK16(t) * vj.s0000111122223333;
 #elif ROW_PAD == 8
       // Two 8-slot columns a 16-wide vector (column q at q * 8, slots k fastest), each times
       // its V[j,q]; the halves are summed once after the loop.
       const float8 vj = vload8(j, V_in);
-#if WEIGHTS == 1
-#define BLOCK16(h) vload_half16(4 * t + (h), blocks)
-#else
-#define BLOCK16(h) vload16(4 * t + (h), blocks)
-#endif
-      acc16 += BLOCK16(0) * vj.s0000000011111111;
-      acc16 += BLOCK16(1) * vj.s2222222233333333;
-      acc16 += BLOCK16(2) * vj.s4444444455555555;
-      acc16 += BLOCK16(3) * vj.s6666666677777777;
-#undef BLOCK16
+      acc16 += BLOCK16(4 * t) * vj.s0000000011111111;
+      acc16 += BLOCK16(4 * t + 1) * vj.s2222222233333333;
+      acc16 += BLOCK16(4 * t + 2) * vj.s4444444455555555;
+      acc16 += BLOCK16(4 * t + 3) * vj.s6666666677777777;
 #else
       // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
       // a vector FMA, no horizontal sums.
@@ -444,22 +471,106 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
 #endif
     for (int c = 0; c < ROW_CHUNKS; ++c) vstore4(acc4[c], c, acc);
 #endif
-    float row_sum = 0.0f;
-    for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
-    float energy = 0.0f;
-    for (int k = 0; k < ni; ++k) {
-      const float va = V_in[base + k];
-      float sum = acc[k] - two_B * (row_sum - va);
-      if (two_C != 0.0f) sum -= two_C * (column_sums[slot_column[base + k]] - va);
-      const float ia = slot_bias[base + k];
-      energy -= va * (0.5f * sum + ia);
-      const float ua = u_in[base + k];
-      const float next = ua + dt * (-ua * inv_tau + sum + ia);
-      u_out[base + k] = next;
-      V_out[base + k] = activate(next, alpha, va);
-    }
-    row_energy[i] = energy;
+    finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
+               V_in, u_in, V_out, u_out, row_energy);
   }
+}
+
+// The same fused Euler step with one work-group of STEP_GROUP work-items per row (a GPU:
+// OpenClEngineOptions::BlockStep::kRowPerGroup). The row's neighbour blocks are contiguous in t,
+// so lane l taking blocks t = first + l, first + l + STEP_GROUP, ... makes neighbouring lanes
+// read neighbouring blocks (coalesced loads), and a row's work is spread over STEP_GROUP lanes
+// instead of one: on an H200 the one-row-per-work-item step read all of Teddy's half blocks at
+// 6 % of the card's bandwidth (docs/engine.md). The lanes' partial inputs are summed in local
+// memory (`partial`: STEP_GROUP x ROW_PAD floats, passed by the host), then lane 0 finishes the
+// row exactly as the per-item kernel does. Same arguments as neuron_step_blocked
+// (rows_per_item is 1 here).
+__kernel void neuron_step_blocked_group(const int n_rows, const int rows_per_item,
+                                        __global const int* row_count,
+                                        __global const int* feature_neighbour_offsets,
+                                        __global const int* feature_neighbours,
+                                        __global const BLOCK_TYPE* blocks,
+                                        __global const float2* slot_right,
+                                        __global const float* slot_correlation,
+                                        __global const float2* feature_point,
+                                        const EnergyParams p,
+                                        __global const float* slot_bias,
+                                        __global const int* slot_column,
+                                        __global const float* column_sums,
+                                        const float two_B, const float two_C,
+                                        __global const int* network_of_row,
+                                        __global const int* active,
+                                        const float dt, const float inv_tau, const float alpha,
+                                        __global const float* V_in, __global const float* u_in,
+                                        __global float* V_out, __global float* u_out,
+                                        __global float* row_energy,
+                                        __local float* partial) {
+  const int i = get_group_id(0);
+  const int lane = get_local_id(0);
+  const int lanes = get_local_size(0);
+  // Uniform per group: a whole group leaves together, before any barrier.
+  if (i >= n_rows || !active[network_of_row[i]]) return;
+  const int ni = row_count[i];
+  float acc[ROW_PAD];
+  for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
+#if WEIGHTS != 2 && (ROW_PAD == 4 || ROW_PAD == 8)
+  float16 acc16 = (float16)(0.0f);
+#endif
+  for (int t = feature_neighbour_offsets[i] + lane; t < feature_neighbour_offsets[i + 1];
+       t += lanes) {
+    const int j = feature_neighbours[t];
+#if WEIGHTS == 2
+    const int nj = row_count[j];
+    for (int q = 0; q < nj; ++q) {
+      const float vb = V_in[j * ROW_PAD + q];
+      if (vb == 0.0f) continue;
+      for (int k = 0; k < ni; ++k) {
+        acc[k] += slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p) * vb;
+      }
+    }
+#elif ROW_PAD == 4
+    const float4 vj = vload4(j, V_in);
+    acc16 += BLOCK16(t) * vj.s0000111122223333;
+#elif ROW_PAD == 8
+    const float8 vj = vload8(j, V_in);
+    acc16 += BLOCK16(4 * t) * vj.s0000000011111111;
+    acc16 += BLOCK16(4 * t + 1) * vj.s2222222233333333;
+    acc16 += BLOCK16(4 * t + 2) * vj.s4444444455555555;
+    acc16 += BLOCK16(4 * t + 3) * vj.s6666666677777777;
+#else
+    const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
+    for (int q = 0; q < ROW_PAD; ++q) {
+      const float vq = V_in[j * ROW_PAD + q];
+      for (int c = 0; c < ROW_CHUNKS; ++c) {
+        const float4 w = BLOCK4(block + q * ROW_PAD + 4 * c);
+        acc[4 * c] += w.x * vq;
+        acc[4 * c + 1] += w.y * vq;
+        acc[4 * c + 2] += w.z * vq;
+        acc[4 * c + 3] += w.w * vq;
+      }
+    }
+#endif
+  }
+#if WEIGHTS != 2 && ROW_PAD == 4
+  vstore4((acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef), 0, acc);
+#elif WEIGHTS != 2 && ROW_PAD == 8
+  const float8 acc8 = acc16.lo + acc16.hi;
+  vstore4(acc8.lo, 0, acc);
+  vstore4(acc8.hi, 1, acc);
+#endif
+  // Tree sum of the lanes' partial inputs (lanes is a power of two).
+  for (int k = 0; k < ROW_PAD; ++k) partial[k * lanes + lane] = acc[k];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int half_lanes = lanes / 2; half_lanes > 0; half_lanes /= 2) {
+    if (lane < half_lanes) {
+      for (int k = 0; k < ni; ++k) partial[k * lanes + lane] += partial[k * lanes + lane + half_lanes];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+  }
+  if (lane != 0) return;
+  for (int k = 0; k < ni; ++k) acc[k] = partial[k * lanes];
+  finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
+             V_in, u_in, V_out, u_out, row_energy);
 }
 
 // The kDecisions stop rule (host/hopfield_options.h): the decision of every row of an active

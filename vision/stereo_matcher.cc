@@ -118,6 +118,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
                              " pairs tested); widen --max-disparity or the epipolar distance");
   }
 
+  if (options.network_observer) options.network_observer(problem, options.energy, options.dynamics);
   hnn::EngineKind engine = options.engine;
   if (engine == hnn::EngineKind::kOpenCL && runtime == nullptr) {
     engine = hnn::EngineKind::kCpu;

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
@@ -83,6 +84,11 @@ struct MatcherOptions {
   hnn::EngineKind engine = hnn::EngineKind::kOpenCL;
   hnn::OpenClEngineOptions opencl;  ///< weight storage and work split of the opencl engine
   std::size_t memory_budget_bytes = hnn::kDefaultMemoryBudgetBytes;
+  /// Called with the network (problem, energy, dynamics) before it is solved, when set: `match
+  /// --save-network` captures it for replays on other devices (host/network_file.h).
+  std::function<void(const hnn::MatchingProblem&, const hnn::EnergyOptions&,
+                     const hnn::DynamicsOptions&)>
+      network_observer;
   std::string Check() const;
 };
 

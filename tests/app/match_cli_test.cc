@@ -2,7 +2,9 @@
 // non-zero exit, no output file).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <iterator>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -10,6 +12,8 @@
 #include <string>
 
 #include "cli_runner.h"
+#include "host/cpu_engines.h"
+#include "host/network_file.h"
 
 namespace {
 
@@ -61,6 +65,30 @@ TEST_F(MatchCli, WritesTheContractFiles) {
   const cv::Mat overlay = cv::imread(Path("o.png"));
   EXPECT_EQ(overlay.cols, 900);
   EXPECT_EQ(overlay.rows, 375 + 56) << "the images, then the legend";
+}
+
+// --save-network: the network as solved, which a replay solves to the same state (the cpu
+// engine: the match's own iterations and final energy).
+TEST_F(MatchCli, SavedNetworkReplaysAsTheMatchSolvedIt) {
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --engine cpu --report " +
+                                        Path("r.json") + " --save-network " + Path("n.hnnet")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  std::ifstream report_file(Path("r.json"));
+  const nlohmann::json report = nlohmann::json::parse(report_file);
+  std::ifstream file(Path("n.hnnet"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  const hnnstereo::hnn::CapturedNetwork net = hnnstereo::hnn::ParseNetwork(bytes);
+  EXPECT_EQ(net.problem.n_neurons(), report["n_neurons"].get<int>());
+  EXPECT_EQ(net.problem.n_left(), report["n_left"].get<int>());
+  const hnnstereo::hnn::SolveReport replay =
+      hnnstereo::hnn::SolveCpu(net.problem, net.energy, net.dynamics);
+  EXPECT_EQ(replay.iterations, report["iterations"].get<int>());
+  EXPECT_NEAR(replay.energy_final, report["energy_final"].get<double>(),
+              1e-9 * std::abs(replay.energy_final));
+  // An unwritable --save-network is refused before any work, with nothing written.
+  for (const char* name : {"m.csv", "r.json", "n.hnnet"}) fs::remove(Path(name));
+  ExpectCleanFailure(RunCli(Teddy("--rectified --save-network " + Path("no/such/dir/n.hnnet"))),
+                     "--save-network");
 }
 
 TEST_F(MatchCli, HelpTeachesTheOptions) {

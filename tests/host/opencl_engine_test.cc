@@ -258,6 +258,51 @@ TEST_P(OpenClStorageTest, PerWeightBlockBuildAgreesWithThePerRowBuild) {
   }
 }
 
+// The GPU's blocked step (one work-group of kStepGroup lanes per row, partial inputs summed in
+// local memory), forced on the CPU device: the same solve as the per-item step, for 4- and
+// 8-slot rows (16-wide vectors), wider rows, the dense network, on the fly, and a batch whose
+// networks freeze at different steps.
+TEST_P(OpenClStorageTest, RowPerGroupStepAgreesWithTheRowPerItemStep) {
+  const WeightStorage storage = GetParam();
+  if (storage == WeightStorage::kCsr) GTEST_SKIP() << "row blocks and on the fly only";
+  OpenClEngineOptions per_item{storage, 0}, per_group{storage, 0};
+  per_item.block_step = OpenClEngineOptions::BlockStep::kRowPerItem;
+  per_group.block_step = OpenClEngineOptions::BlockStep::kRowPerGroup;
+  auto compare = [&](const MatchingProblem& problem, const EnergyOptions& energy,
+                     const std::string& what) {
+    const SolveReport a = OpenClEngine(*runtime_, per_item).Solve(problem, energy, DynamicsOptions{});
+    const SolveReport b = OpenClEngine(*runtime_, per_group).Solve(problem, energy, DynamicsOptions{});
+    EXPECT_EQ(MatchedNeurons(problem, a), MatchedNeurons(problem, b)) << what;
+    // The lanes sum in another order: the same steps, up to one energy check either way.
+    EXPECT_NEAR(a.iterations, b.iterations, DynamicsOptions{}.energy_interval) << what;
+    EXPECT_NEAR(a.energy_final, b.energy_final, 1e-4 * EnergyScale(a)) << what;
+  };
+  for (const Objective objective : {Objective::kGeometrySimilarity, Objective::kThesis}) {
+    for (int max_per_row : {0, 4, 8}) {
+      EnergyOptions energy;
+      energy.support_radius_px = 15.0;
+      energy.objective = objective;
+      compare(testing::SyntheticProblem(313, 150, 50, false, max_per_row), energy,
+              "objective " + std::to_string(static_cast<int>(objective)) + " per-row " +
+                  std::to_string(max_per_row));
+    }
+  }
+  compare(testing::SyntheticProblem(57, 25, 8, /*dense=*/true), EnergyOptions{}, "dense");
+  ProblemBatch batch;
+  for (std::uint64_t seed : {221u, 222u, 223u}) {
+    batch.push_back(testing::SyntheticProblem(seed, 50 + 20 * static_cast<int>(seed % 3), 20, false, 4));
+  }
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  const auto a = OpenClEngine(*runtime_, per_item).SolveBatch(batch, energy, DynamicsOptions{});
+  const auto b = OpenClEngine(*runtime_, per_group).SolveBatch(batch, energy, DynamicsOptions{});
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t n = 0; n < a.size(); ++n) {
+    EXPECT_EQ(MatchedNeurons(batch[n], a[n]), MatchedNeurons(batch[n], b[n])) << "batch " << n;
+    EXPECT_NEAR(a[n].energy_final, b[n].energy_final, 1e-4 * EnergyScale(a[n])) << "batch " << n;
+  }
+}
+
 TEST_P(OpenClStorageTest, DenseNetworkAgreesWithTheCpuEngine) {
   const MatchingProblem problem = testing::SyntheticProblem(56, 30, 10, /*dense=*/true);
   EnergyOptions energy;
