@@ -343,6 +343,46 @@ __kernel void column_sums_blocked(const int n_columns,
 // The rest of row i's Euler step once `acc` holds its compatibility input sum_b W_ab V_b: the
 // row and column uniqueness terms (eq. 6.11), the bias, the row's energy term at V_in (eq. 6.10)
 // and the step of u and V into the other state buffer.
+#if ROW_PAD == 4 && !DISCRETE
+// 4-slot rows (hnn-default's top-4 network): the four slots as one float4, so that tanh - the
+// costliest part of a step on a CPU device once the blocks sit in cache (perf: the scalar tanh
+// was most of the step on sparse-2000) - is one vector call. Padded slots (k >= ni) are masked
+// to 0 and never written; the sums run in the scalar loop's order.
+void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
+                __global const int* slot_column, __global const float* column_sums,
+                const float two_B, const float two_C, const float dt, const float inv_tau,
+                const float alpha, __global const float* V_in, __global const float* u_in,
+                __global float* V_out, __global float* u_out, __global float* row_energy) {
+  const int base = i * 4;
+  const int4 live = (int4)(0, 1, 2, 3) < (int4)(ni);
+  const float4 zero = (float4)(0.0f);
+  const float4 va = select(zero, vload4(i, V_in), live);
+  const float row_sum = ((va.x + va.y) + va.z) + va.w;
+  float4 sum = vload4(0, acc) - two_B * (row_sum - va);
+  if (two_C != 0.0f) {
+    float4 cs = zero;
+    if (ni > 0) cs.x = column_sums[slot_column[base]];
+    if (ni > 1) cs.y = column_sums[slot_column[base + 1]];
+    if (ni > 2) cs.z = column_sums[slot_column[base + 2]];
+    if (ni > 3) cs.w = column_sums[slot_column[base + 3]];
+    sum -= two_C * (cs - va);
+  }
+  const float4 ia = select(zero, vload4(i, slot_bias), live);
+  const float4 e = va * (0.5f * sum + ia);
+  row_energy[i] = -(((e.x + e.y) + e.z) + e.w);
+  const float4 ua = select(zero, vload4(i, u_in), live);
+  const float4 next = ua + dt * (-ua * inv_tau + sum + ia);
+  const float4 v = 0.5f * (1.0f + tanh(next / alpha));
+  if (ni == 4) {
+    vstore4(next, i, u_out);
+    vstore4(v, i, V_out);
+  } else {
+    if (ni > 0) { u_out[base] = next.x; V_out[base] = v.x; }
+    if (ni > 1) { u_out[base + 1] = next.y; V_out[base + 1] = v.y; }
+    if (ni > 2) { u_out[base + 2] = next.z; V_out[base + 2] = v.z; }
+  }
+}
+#else
 void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
                 __global const int* slot_column, __global const float* column_sums,
                 const float two_B, const float two_C, const float dt, const float inv_tau,
@@ -365,6 +405,7 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
   }
   row_energy[i] = energy;
 }
+#endif
 
 // Block t of a row times V of its neighbour row j, added to acc (slots k of the row): the same
 // arithmetic as the per-item step's inner loop (column q of the block times V[j,q]).

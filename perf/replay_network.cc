@@ -56,7 +56,7 @@ int Run(int argc, char** argv) {
   std::vector<std::string> files;
   std::string storages = "csr,blocked-float,blocked-half,on-the-fly", device, out;
   std::string block_step = "auto";
-  int repeats = 5, warmup = 1;
+  int repeats = 5, warmup = 1, rows_per_item = 0;
   bool cpu = false, profile = false;
   app.add_option("networks", files, "Network files (HNNET1)")->required();
   app.add_option("--storages", storages, "Weight storages of the opencl engine, comma-separated");
@@ -65,6 +65,9 @@ int Run(int argc, char** argv) {
   app.add_flag("--cpu", cpu, "Also the cpu reference engine (one timed solve), the winners' baseline");
   app.add_option("--device", device, "OpenCL device: index or name substring (default: the first GPU)");
   app.add_flag("--profile", profile, "Device time per kernel (OpenCL profiling events)");
+  app.add_option("--rows-per-item", rows_per_item,
+                 "Row blocks, per-item step: rows per work-item (0 = the engine's choice)")
+      ->check(CLI::Range(0, 1 << 20));
   app.add_option("--block-step", block_step,
                  "Row blocks' step: auto (a work-group per row on a GPU), item (runs of rows per "
                  "work-item) or group (a work-group of lanes per row)")
@@ -170,6 +173,7 @@ int Run(int argc, char** argv) {
       hnn::OpenClEngineOptions options;
       options.storage = storage;
       options.profile = profile;
+      options.rows_per_item = rows_per_item;
       options.block_step = block_step == "item"    ? hnn::OpenClEngineOptions::BlockStep::kRowPerItem
                            : block_step == "group" ? hnn::OpenClEngineOptions::BlockStep::kRowPerGroup
                                                    : hnn::OpenClEngineOptions::BlockStep::kAuto;
