@@ -57,6 +57,7 @@ int Run(int argc, char** argv) {
   std::string storages = "csr,blocked-float,blocked-half,on-the-fly", device, out;
   std::string block_step = "auto";
   int repeats = 5, warmup = 1, rows_per_item = 0;
+  double time_step = 0.0;
   bool cpu = false, profile = false;
   app.add_option("networks", files, "Network files (HNNET1)")->required();
   app.add_option("--storages", storages, "Weight storages of the opencl engine, comma-separated");
@@ -65,6 +66,10 @@ int Run(int argc, char** argv) {
   app.add_flag("--cpu", cpu, "Also the cpu reference engine (one timed solve), the winners' baseline");
   app.add_option("--device", device, "OpenCL device: index or name substring (default: the first GPU)");
   app.add_flag("--profile", profile, "Device time per kernel (OpenCL profiling events)");
+  app.add_option("--time-step", time_step,
+                 "Override the captured Euler step dt of the opencl runs (0 = as captured); the "
+                 "agree column then compares with the first engine's winners at the captured dt")
+      ->check(CLI::Range(0.0, 10.0));
   app.add_option("--rows-per-item", rows_per_item,
                  "Row blocks, per-item step: rows per work-item (0 = the engine's choice)")
       ->check(CLI::Range(0, 1 << 20));
@@ -169,6 +174,8 @@ int Run(int argc, char** argv) {
     if (cpu) {
       record("cpu", {hnn::SolveCpu(net.problem, net.energy, net.dynamics)});
     }
+    hnn::DynamicsOptions dynamics = net.dynamics;
+    if (time_step > 0) dynamics.time_step = time_step;
     for (hnn::WeightStorage storage : kinds) {
       hnn::OpenClEngineOptions options;
       options.storage = storage;
@@ -180,9 +187,9 @@ int Run(int argc, char** argv) {
       hnn::OpenClEngine engine(*runtime, options);
       std::vector<hnn::SolveReport> reports;
       try {
-        for (int r = 0; r < warmup; ++r) engine.Solve(net.problem, net.energy, net.dynamics);
+        for (int r = 0; r < warmup; ++r) engine.Solve(net.problem, net.energy, dynamics);
         for (int r = 0; r < repeats; ++r) {
-          reports.push_back(engine.Solve(net.problem, net.energy, net.dynamics));
+          reports.push_back(engine.Solve(net.problem, net.energy, dynamics));
         }
       } catch (const std::exception& e) {
         std::printf("%-22s %-14s failed: %s\n", name.c_str(),
