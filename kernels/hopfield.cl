@@ -419,31 +419,89 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
 #define BLOCK_TYPE float
 #endif
 
+// The arguments of both fused step kernels (the host sets them once for either).
+#define STEP_BLOCKED_PARAMS                                                                      \
+  const int n_rows, const int rows_per_item, __global const int* row_count,                      \
+      __global const int* feature_neighbour_offsets, __global const int* feature_neighbours,     \
+      __global const BLOCK_TYPE* blocks, __global const float2* slot_right,                      \
+      __global const float* slot_correlation, __global const float2* feature_point,             \
+      const EnergyParams p, __global const float* slot_bias, __global const int* slot_column,    \
+      __global const float* column_sums, const float two_B, const float two_C,                   \
+      __global const int* network_of_row, __global const int* active, const float dt,           \
+      const float inv_tau, const float alpha, __global const float* V_in,                        \
+      __global const float* u_in, __global float* V_out, __global float* u_out,                  \
+      __global float* row_energy
+
+// Row i's compatibility input acc[k] = sum over its neighbour blocks t in [first, end) (every
+// stride-th) of block t times V of the neighbour row, k < ROW_PAD. Both step kernels call it: the
+// per-item one with the row's whole range, the group one with a lane's share.
+void row_input(const int i, const int ni, const int first, const int end, const int stride,
+               __global const int* row_count, __global const int* feature_neighbours,
+               __global const BLOCK_TYPE* blocks, __global const float2* slot_right,
+               __global const float* slot_correlation, __global const float2* feature_point,
+               const EnergyParams p, __global const float* V_in, float* acc) {
+  for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
+#if WEIGHTS != 2
+  float4 acc4[ROW_CHUNKS];
+  for (int c = 0; c < ROW_CHUNKS; ++c) acc4[c] = (float4)(0.0f);
+#if ROW_PAD == 4 || ROW_PAD == 8
+  float16 acc16 = (float16)(0.0f);
+#endif
+#endif
+  for (int t = first; t < end; t += stride) {
+    const int j = feature_neighbours[t];
+#if WEIGHTS == 2
+    const int nj = row_count[j];
+    for (int q = 0; q < nj; ++q) {
+      const float vb = V_in[j * ROW_PAD + q];
+      if (vb == 0.0f) continue;
+      for (int k = 0; k < ni; ++k) {
+        acc[k] += slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p) * vb;
+      }
+    }
+#else
+#if ROW_PAD == 4
+    // The whole 4 x 4 block as one 16-wide vector (one AVX-512 register on a CPU device):
+    // column q times V[j,q] with V[j] spread to (V0 x4, V1 x4, V2 x4, V3 x4); the four
+    // columns are summed once after the loop. One conversion and one FMA a block.
+    const float4 vj = vload4(j, V_in);
+    acc16 += BLOCK16(t) * vj.s0000111122223333;
+#elif ROW_PAD == 8
+    // Two 8-slot columns a 16-wide vector (column q at q * 8, slots k fastest), each times
+    // its V[j,q]; the halves are summed once after the loop.
+    const float8 vj = vload8(j, V_in);
+    acc16 += BLOCK16(4 * t) * vj.s0000000011111111;
+    acc16 += BLOCK16(4 * t + 1) * vj.s2222222233333333;
+    acc16 += BLOCK16(4 * t + 2) * vj.s4444444455555555;
+    acc16 += BLOCK16(4 * t + 3) * vj.s6666666677777777;
+#else
+    // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
+    // a vector FMA, no horizontal sums.
+    const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
+    for (int q = 0; q < ROW_PAD; ++q) {
+      const float vq = V_in[j * ROW_PAD + q];
+      for (int c = 0; c < ROW_CHUNKS; ++c) {
+        acc4[c] += BLOCK4(block + q * ROW_PAD + 4 * c) * vq;
+      }
+    }
+#endif  // ROW_PAD == 4, 8
+#endif
+  }
+#if WEIGHTS != 2
+#if ROW_PAD == 4
+  acc4[0] = (acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef);
+#elif ROW_PAD == 8
+  const float8 acc8 = acc16.lo + acc16.hi;
+  acc4[0] = acc8.lo;
+  acc4[1] = acc8.hi;
+#endif
+  for (int c = 0; c < ROW_CHUNKS; ++c) vstore4(acc4[c], c, acc);
+#endif
+}
+
 // One fused Euler step for rows [item * rows_per_item, +rows_per_item): reads V_in and u_in,
 // writes V_out, u_out and the energy term of every row at V_in (E = sum of row_energy, eq. 6.10).
-__kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
-                                  __global const int* row_count,
-                                  __global const int* feature_neighbour_offsets,
-                                  __global const int* feature_neighbours,
-#if WEIGHTS == 1
-                                  __global const half* blocks,
-#else
-                                  __global const float* blocks,
-#endif
-                                  __global const float2* slot_right,
-                                  __global const float* slot_correlation,
-                                  __global const float2* feature_point,
-                                  const EnergyParams p,
-                                  __global const float* slot_bias,
-                                  __global const int* slot_column,
-                                  __global const float* column_sums,
-                                  const float two_B, const float two_C,
-                                  __global const int* network_of_row,
-                                  __global const int* active,
-                                  const float dt, const float inv_tau, const float alpha,
-                                  __global const float* V_in, __global const float* u_in,
-                                  __global float* V_out, __global float* u_out,
-                                  __global float* row_energy) {
+__kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
   const int first = get_global_id(0) * rows_per_item;
   const int last = min(n_rows, first + rows_per_item);
   for (int i = first; i < last; ++i) {
@@ -451,67 +509,8 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
     // A frozen (converged) network is not touched: the state buffer it stopped on keeps V_s.
     if (!active[network_of_row[i]]) continue;
     float acc[ROW_PAD];
-    for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
-#if WEIGHTS != 2
-    float4 acc4[ROW_CHUNKS];
-    for (int c = 0; c < ROW_CHUNKS; ++c) acc4[c] = (float4)(0.0f);
-#if ROW_PAD == 4 || ROW_PAD == 8
-    float16 acc16 = (float16)(0.0f);
-#endif
-#endif
-    for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
-      const int j = feature_neighbours[t];
-#if WEIGHTS == 2
-      const int nj = row_count[j];
-      for (int q = 0; q < nj; ++q) {
-        const float vb = V_in[j * ROW_PAD + q];
-        if (vb == 0.0f) continue;
-        for (int k = 0; k < ni; ++k) {
-          acc[k] += slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p) * vb;
-        }
-      }
-#else
-#if ROW_PAD == 4
-      // The whole 4 x 4 block as one 16-wide vector (one AVX-512 register on a CPU device):
-      // column q times V[j,q] with V[j] spread to (V0 x4, V1 x4, V2 x4, V3 x4); the four
-      // columns are summed once after the loop. One conversion and one FMA a block.
-      const float4 vj = vload4(j, V_in);
-      acc16 += BLOCK16(t) * vj.s0000111122223333;
-#elif ROW_PAD == 8
-      // Two 8-slot columns a 16-wide vector (column q at q * 8, slots k fastest), each times
-      // its V[j,q]; the halves are summed once after the loop.
-      const float8 vj = vload8(j, V_in);
-      acc16 += BLOCK16(4 * t) * vj.s0000000011111111;
-      acc16 += BLOCK16(4 * t + 1) * vj.s2222222233333333;
-      acc16 += BLOCK16(4 * t + 2) * vj.s4444444455555555;
-      acc16 += BLOCK16(4 * t + 3) * vj.s6666666677777777;
-#else
-      // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
-      // a vector FMA, no horizontal sums.
-      const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
-      for (int q = 0; q < ROW_PAD; ++q) {
-        const float vq = V_in[j * ROW_PAD + q];
-        for (int c = 0; c < ROW_CHUNKS; ++c) {
-#if WEIGHTS == 1
-          acc4[c] += vload_half4(0, blocks + block + q * ROW_PAD + 4 * c) * vq;
-#else
-          acc4[c] += vload4(0, blocks + block + q * ROW_PAD + 4 * c) * vq;
-#endif
-        }
-      }
-#endif  // ROW_PAD == 4, 8
-#endif
-    }
-#if WEIGHTS != 2
-#if ROW_PAD == 4
-    acc4[0] = (acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef);
-#elif ROW_PAD == 8
-    const float8 acc8 = acc16.lo + acc16.hi;
-    acc4[0] = acc8.lo;
-    acc4[1] = acc8.hi;
-#endif
-    for (int c = 0; c < ROW_CHUNKS; ++c) vstore4(acc4[c], c, acc);
-#endif
+    row_input(i, ni, feature_neighbour_offsets[i], feature_neighbour_offsets[i + 1], 1, row_count,
+              feature_neighbours, blocks, slot_right, slot_correlation, feature_point, p, V_in, acc);
     finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
                V_in, u_in, V_out, u_out, row_energy);
   }
@@ -526,26 +525,7 @@ __kernel void neuron_step_blocked(const int n_rows, const int rows_per_item,
 // memory (`partial`: STEP_GROUP x ROW_PAD floats, passed by the host), then lane 0 finishes the
 // row exactly as the per-item kernel does. Same arguments as neuron_step_blocked
 // (rows_per_item is 1 here).
-__kernel void neuron_step_blocked_group(const int n_rows, const int rows_per_item,
-                                        __global const int* row_count,
-                                        __global const int* feature_neighbour_offsets,
-                                        __global const int* feature_neighbours,
-                                        __global const BLOCK_TYPE* blocks,
-                                        __global const float2* slot_right,
-                                        __global const float* slot_correlation,
-                                        __global const float2* feature_point,
-                                        const EnergyParams p,
-                                        __global const float* slot_bias,
-                                        __global const int* slot_column,
-                                        __global const float* column_sums,
-                                        const float two_B, const float two_C,
-                                        __global const int* network_of_row,
-                                        __global const int* active,
-                                        const float dt, const float inv_tau, const float alpha,
-                                        __global const float* V_in, __global const float* u_in,
-                                        __global float* V_out, __global float* u_out,
-                                        __global float* row_energy,
-                                        __local float* partial) {
+__kernel void neuron_step_blocked_group(STEP_BLOCKED_PARAMS, __local float* partial) {
   const int i = get_group_id(0);
   const int lane = get_local_id(0);
   const int lanes = get_local_size(0);
@@ -553,52 +533,9 @@ __kernel void neuron_step_blocked_group(const int n_rows, const int rows_per_ite
   if (i >= n_rows || !active[network_of_row[i]]) return;
   const int ni = row_count[i];
   float acc[ROW_PAD];
-  for (int k = 0; k < ROW_PAD; ++k) acc[k] = 0.0f;
-#if WEIGHTS != 2 && (ROW_PAD == 4 || ROW_PAD == 8)
-  float16 acc16 = (float16)(0.0f);
-#endif
-  for (int t = feature_neighbour_offsets[i] + lane; t < feature_neighbour_offsets[i + 1];
-       t += lanes) {
-    const int j = feature_neighbours[t];
-#if WEIGHTS == 2
-    const int nj = row_count[j];
-    for (int q = 0; q < nj; ++q) {
-      const float vb = V_in[j * ROW_PAD + q];
-      if (vb == 0.0f) continue;
-      for (int k = 0; k < ni; ++k) {
-        acc[k] += slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p) * vb;
-      }
-    }
-#elif ROW_PAD == 4
-    const float4 vj = vload4(j, V_in);
-    acc16 += BLOCK16(t) * vj.s0000111122223333;
-#elif ROW_PAD == 8
-    const float8 vj = vload8(j, V_in);
-    acc16 += BLOCK16(4 * t) * vj.s0000000011111111;
-    acc16 += BLOCK16(4 * t + 1) * vj.s2222222233333333;
-    acc16 += BLOCK16(4 * t + 2) * vj.s4444444455555555;
-    acc16 += BLOCK16(4 * t + 3) * vj.s6666666677777777;
-#else
-    const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
-    for (int q = 0; q < ROW_PAD; ++q) {
-      const float vq = V_in[j * ROW_PAD + q];
-      for (int c = 0; c < ROW_CHUNKS; ++c) {
-        const float4 w = BLOCK4(block + q * ROW_PAD + 4 * c);
-        acc[4 * c] += w.x * vq;
-        acc[4 * c + 1] += w.y * vq;
-        acc[4 * c + 2] += w.z * vq;
-        acc[4 * c + 3] += w.w * vq;
-      }
-    }
-#endif
-  }
-#if WEIGHTS != 2 && ROW_PAD == 4
-  vstore4((acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef), 0, acc);
-#elif WEIGHTS != 2 && ROW_PAD == 8
-  const float8 acc8 = acc16.lo + acc16.hi;
-  vstore4(acc8.lo, 0, acc);
-  vstore4(acc8.hi, 1, acc);
-#endif
+  row_input(i, ni, feature_neighbour_offsets[i] + lane, feature_neighbour_offsets[i + 1], lanes,
+            row_count, feature_neighbours, blocks, slot_right, slot_correlation, feature_point, p,
+            V_in, acc);
   // Tree sum of the lanes' partial inputs (lanes is a power of two).
   for (int k = 0; k < ROW_PAD; ++k) partial[k * lanes + lane] = acc[k];
   barrier(CLK_LOCAL_MEM_FENCE);
