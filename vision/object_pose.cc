@@ -44,6 +44,9 @@ std::string ObjectPoseOptions::Check() const {
         << ")";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
+  } else if (!(max_gap_points >= 0 && gap_margin_mm >= 0.0 && std::isfinite(gap_margin_mm))) {
+    out << "ObjectPoseOptions: max_gap_points and gap_margin_mm must be >= 0 (are " << max_gap_points
+        << ", " << gap_margin_mm << ")";
   } else if (!(outline_band_fraction >= 0.0 && outline_band_fraction < 0.5 &&
                min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
     out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
@@ -313,6 +316,44 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
   return count;
 }
 
+// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
+double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
+  double distance = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < hull.size(); ++k) {
+    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
+  }
+  return distance;
+}
+
+// Points (not in clusters a or b, not weak) seen more than 2 top layers below or above the
+// joint top in the gap between two pieces: inside the hull of their joint top face, more than
+// gap_margin_mm inside its outline (the part's sides and base edge lie under the outline of its
+// face), and not under one piece's own top (a mismatch there says nothing about the gap). Two
+// parts standing apart show the table, a lower part, or their own sides facing each other
+// between them; the pieces of one face hide all of that.
+int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
+                       const std::vector<int>& cluster_of_point, int a, int b,
+                       const std::vector<Eigen::Vector2d>& joint_hull,
+                       const std::vector<Eigen::Vector2d>& hull_a,
+                       const std::vector<Eigen::Vector2d>& hull_b, double height,
+                       const ObjectPoseOptions& options, const std::vector<bool>* weak) {
+  if (joint_hull.size() < 3) return 0;
+  int count = 0;
+  for (std::size_t i = 0; i < points_in_world.size(); ++i) {
+    const Eigen::Vector3d& p = points_in_world[i];
+    if (cluster_of_point[i] == a || cluster_of_point[i] == b) continue;
+    if (weak != nullptr && (*weak)[i]) continue;
+    if (!(std::abs(p.z() - height) > 2.0 * options.top_layer_mm)) continue;
+    const Eigen::Vector2d xy = p.head<2>();
+    if (!InsideConvexPolygon(joint_hull, xy) ||
+        DistanceToPolygonOutline(joint_hull, xy) <= options.gap_margin_mm) {
+      continue;
+    }
+    if (!InsideConvexPolygon(hull_a, xy) && !InsideConvexPolygon(hull_b, xy)) ++count;
+  }
+  return count;
+}
+
 // Distance from `p` inside (or outside) `rectangle` to its outline.
 double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
   const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
@@ -501,7 +542,10 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
               PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
                                         static_cast<int>(large), joint, height, options, weak) >
                   options.max_hidden_fraction *
-                      static_cast<double>(clusters[small].size() + clusters[large].size())) {
+                      static_cast<double>(clusters[small].size() + clusters[large].size()) ||
+              PointsSeenInTheGap(points_in_world, cluster_of_point, static_cast<int>(small),
+                                 static_cast<int>(large), joint, top_hulls[small], top_hulls[large],
+                                 height, options, weak) > options.max_gap_points) {
             continue;
           }
         }

@@ -73,6 +73,15 @@ struct ObjectPoseOptions {
   /// face's texture) are at most this fraction of their points: a gap between two parts shows
   /// the dusty table, dense with points.
   double max_hidden_fraction = 0.08;
+  /// ... and when at most this many points are seen in the gap between the two pieces (inside
+  /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
+  /// height): a count, not a fraction, since the table between two parts 15 mm apart gives
+  /// 6-34 points whatever the parts' sizes (seeds 10013, 10056, 10080, 10099, 10192: whole parts
+  /// of equal height joined into one part between them), a split face hides it.
+  int max_gap_points = 3;
+  /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
+  /// base edge lie under its top face's outline).
+  double gap_margin_mm = 3.0;
   std::string Check() const;
 };
 
