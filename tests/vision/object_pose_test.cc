@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -172,6 +173,45 @@ TEST(ObjectPose, SplitTopFaceJoinsUnlessTheTableShowsBetween) {
   for (int k = 0; k < 40; ++k) points.emplace_back(60.0 * uniform(random), 12.0 + 16.0 * uniform(random), 0.0);
   EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
   EXPECT_EQ(merges, 0);
+}
+
+// Two whole parts of equal height 20 mm apart, with only a few table points seen between them
+// (under max_hidden_fraction of their points): the gap-point guard keeps them apart (issue 12
+// stress seeds 10013, 10056, 10080, 10099, 10192: such pairs joined into one part between them).
+// A few mismatches in the gap, or points under the joint outline (a part's sides), do not.
+TEST(ObjectPose, SplitTopFaceStaysApartWhenAFewPointsShowInTheGap) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> first, second;
+  // As above: bands y in [0, 10] and [30, 40] of a 60 x 40 mm face at 25 mm, with their corners
+  // so that the joint outline is the 60 x 40 mm rectangle.
+  for (int k = 0; k < 120; ++k) {
+    const double x = k < 4 ? 60.0 * (k % 2) : 60.0 * uniform(random);
+    const double y = k < 4 ? (k < 2 ? 0.0 : 40.0)
+                           : (k % 2 == 0) ? 10.0 * uniform(random) : 30.0 + 10.0 * uniform(random);
+    (y < 20.0 ? first : second).push_back(static_cast<int>(points.size()));
+    points.emplace_back(x, y, 25.0 + 0.3 * (uniform(random) - 0.5));
+  }
+  const std::size_t face_points = points.size();
+  ObjectPoseOptions unguarded;
+  unguarded.max_gap_points = std::numeric_limits<int>::max();
+  int merges = 0;
+  // 6 table points in the gap: 5 % of the pieces' points, under max_hidden_fraction (8 %).
+  for (int k = 0; k < 6; ++k) points.emplace_back(5.0 + 50.0 * uniform(random), 14.0 + 12.0 * uniform(random), 0.0);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, unguarded, &merges).size(), 1u)
+      << "the hidden-point rule alone joins them";
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
+  EXPECT_EQ(merges, 0);
+  // max_gap_points (3) mismatches in the gap: still one face.
+  points.resize(face_points + 3);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 1u);
+  EXPECT_EQ(merges, 1);
+  // Points within gap_margin_mm (3 mm) of the joint outline are a part's sides: not counted.
+  points.resize(face_points);
+  for (int k = 0; k < 6; ++k) points.emplace_back(1.5, 14.0 + 2.0 * k, 0.0);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 1u);
+  EXPECT_EQ(merges, 1);
 }
 
 }  // namespace
