@@ -51,8 +51,14 @@ std::string ObjectPoseOptions::Check() const {
                min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
     out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
            "min_outline_fraction in [0, 1]";
+  } else if (!(min_outline_piece_fraction >= 0.0 && min_facing_side_mm >= 0.0)) {
+    out << "ObjectPoseOptions: min_outline_piece_fraction and min_facing_side_mm must be >= 0 (are "
+        << min_outline_piece_fraction << ", " << min_facing_side_mm << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
+  } else if (!(min_top_neighbours >= 0 && top_neighbour_radius_mm >= 0.0)) {
+    out << "ObjectPoseOptions: min_top_neighbours and top_neighbour_radius_mm must be >= 0 (are "
+        << min_top_neighbours << ", " << top_neighbour_radius_mm << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -215,6 +221,19 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   }
   pose.height_mm = height;
   pose.top_points = static_cast<int>(top_xy.size());
+  if (options.min_top_neighbours > 0) {
+    // Lone top points are mismatches: the outline is fitted without them.
+    const double radius_squared = options.top_neighbour_radius_mm * options.top_neighbour_radius_mm;
+    std::vector<Eigen::Vector2d> kept;
+    for (std::size_t a = 0; a < top_xy.size(); ++a) {
+      int neighbours = 0;
+      for (std::size_t b = 0; b < top_xy.size() && neighbours < options.min_top_neighbours; ++b) {
+        if (b != a && (top_xy[a] - top_xy[b]).squaredNorm() <= radius_squared) ++neighbours;
+      }
+      if (neighbours >= options.min_top_neighbours) kept.push_back(top_xy[a]);
+    }
+    if (!kept.empty()) top_xy = std::move(kept);
+  }
   pose.top_rectangle = MinAreaRectangle(top_xy);
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
@@ -369,7 +388,7 @@ double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vec
 // piece's points (1 mm bins within `band` of the side): a part's own edge facing the gap is a
 // dense straight line; the cut across a split face is not.
 double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
-                          double band) {
+                          double band, double min_side) {
   const Rectangle2D rectangle = MinAreaRectangle(piece);
   if (rectangle.length < 1.0) return 0.0;
   const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
@@ -383,6 +402,7 @@ double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen
   const Eigen::Vector2d direction = across_u ? v : u;
   const double offset = across_u ? 0.5 * rectangle.length : 0.5 * rectangle.width;
   const double side_length = across_u ? rectangle.width : rectangle.length;
+  if (side_length < min_side) return 0.0;  // a thin piece's end is no edge
   const int bins = std::max(1, static_cast<int>(std::floor(side_length)));
   std::vector<bool> covered(static_cast<std::size_t>(bins), false);
   for (const auto& p : piece) {
@@ -406,10 +426,10 @@ bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
   for (const auto& p : second) second_centre += p;
   first_centre /= static_cast<double>(first.size());
   second_centre /= static_cast<double>(second.size());
-  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm) >=
-             options.min_facing_edge_coverage &&
-         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm) >=
-             options.min_facing_edge_coverage;
+  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm,
+                            options.min_facing_side_mm) >= options.min_facing_edge_coverage &&
+         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm,
+                            options.min_facing_side_mm) >= options.min_facing_edge_coverage;
 }
 
 bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
@@ -457,6 +477,9 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   const Rectangle2D rectangle = MinAreaRectangle(joint);
   const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
   for (const auto* piece : {&first, &second}) {
+    if (MinAreaRectangle(*piece).length < options.min_outline_piece_fraction * rectangle.width) {
+      return false;  // a speck, no stretch of the outline
+    }
     int on_outline = 0;
     for (const auto& p : *piece) {
       if (DistanceToRectangleOutline(rectangle, p) <= band) ++on_outline;
@@ -527,13 +550,17 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           joint = ConvexHull(joint);
           const double height = 0.5 * (poses[small].height_mm + poses[large].height_mm);
           // A round top face is complete when its hull fits a circle: a piece outside that
-          // circle belongs to something else.
-          const bool outside_circle =
-              poses[large].round &&
-              std::any_of(top_hulls[small].begin(), top_hulls[small].end(), [&](const Eigen::Vector2d& p) {
-                return (p - poses[large].circle_centre).norm() >
-                       poses[large].circle_radius + options.top_layer_mm;
-              });
+          // circle belongs to something else - whichever of the two is round (seed 10099: a
+          // round 53 mm top, the smaller cluster, was joined with a box beside it).
+          const auto outside_circle_of = [&](std::size_t round, std::size_t other) {
+            return poses[round].round &&
+                   std::any_of(top_hulls[other].begin(), top_hulls[other].end(),
+                               [&](const Eigen::Vector2d& p) {
+                                 return (p - poses[round].circle_centre).norm() >
+                                        poses[round].circle_radius + options.top_layer_mm;
+                               });
+          };
+          const bool outside_circle = outside_circle_of(large, small) || outside_circle_of(small, large);
           if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
               std::abs(poses[small].height_mm - poses[large].height_mm) >
                   options.max_split_height_difference_mm ||

@@ -101,6 +101,28 @@ TEST(ObjectPose, TopFaceHeightAndCentreIgnoreSidesAndStrayPoints) {
   EXPECT_GT(pose.top_points, 250);
 }
 
+// A lone mismatch at the top height beyond the face (seed 10147: 12 mm out) does not stretch
+// the top rectangle; without min_top_neighbours it does.
+TEST(ObjectPose, ALoneTopPointDoesNotStretchTheRectangle) {
+  std::mt19937 random(kSeed);
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& xy : RectanglePoints({30, 320}, 72, 43, 0.0, 300, 0.3, &random)) {
+    points.emplace_back(xy.x(), xy.y(), 114.0);
+  }
+  points.emplace_back(30.0, 320.0 + 21.5 + 12.0, 116.5);
+  std::vector<int> indices(points.size());
+  for (std::size_t i = 0; i < indices.size(); ++i) indices[i] = static_cast<int>(i);
+  const ObjectPose pose = EstimateObjectPose(points, indices);
+  EXPECT_NEAR(pose.top_rectangle.width, 43.0, 1.5);
+  EXPECT_NEAR((pose.centroid.head<2>() - Eigen::Vector2d(30, 320)).norm(), 0.0, 1.0);
+  EXPECT_EQ(pose.top_points, static_cast<int>(points.size()));  // counted, not fitted
+  ObjectPoseOptions every_point;
+  every_point.min_top_neighbours = 0;
+  const ObjectPose stretched = EstimateObjectPose(points, indices, every_point);
+  EXPECT_GT(stretched.top_rectangle.width, 50.0);
+  EXPECT_GT((stretched.centroid.head<2>() - Eigen::Vector2d(30, 320)).norm(), 5.0);
+}
+
 TEST(ObjectPose, PosesAreTallestFirst) {
   std::vector<Eigen::Vector3d> points = {{0, 0, 10}, {1, 0, 10}, {0, 1, 10},
                                          {50, 0, 90}, {51, 0, 90}, {50, 1, 90},
@@ -223,6 +245,32 @@ namespace {
 // A plain top face shows only its outline; its edges along the epipolar lines are weak, so it
 // falls apart into parallel edges a face's width apart (seed 549: a 75 x 59 mm top, 120 mm
 // tall). Two such pieces outline one face; two parts' complete outlines do not.
+// A speck (a few points within 3 mm) lies on the outline of any rectangle it spans: it is no
+// stretch of a face's outline (seed 10163), and it has no edge to face anything with, nor has a
+// thin piece seen end-on (seeds 10179, 10188).
+TEST(ObjectPose, SpecksAndLineEndsOutlineNoFaceAndFaceNoEdge) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector2d> edge, speck, edge_in_line;
+  for (int k = 0; k < 60; ++k) edge.emplace_back(52.0 * uniform(random), 0.5 * uniform(random));
+  for (int k = 0; k < 14; ++k) speck.emplace_back(25.0 + 3.0 * uniform(random), 100.0 + 3.0 * uniform(random));
+  for (int k = 0; k < 30; ++k) edge_in_line.emplace_back(69.0 + 27.0 * uniform(random), 0.5 * uniform(random));
+  ObjectPoseOptions before;
+  before.min_outline_piece_fraction = 0.0;
+  before.min_facing_side_mm = 0.0;
+  // An edge and a speck 100 mm away: both on the outline of their joint 52 x 100 mm rectangle.
+  EXPECT_TRUE(PiecesOutlineOneFace(edge, speck, before));
+  EXPECT_FALSE(PiecesOutlineOneFace(edge, speck));
+  // Two pieces of one edge, 17 mm apart in line: each "faced" the other with its 0.5 mm end.
+  EXPECT_TRUE(PiecesFaceEachOtherWithEdges(edge, edge_in_line, before));
+  EXPECT_FALSE(PiecesFaceEachOtherWithEdges(edge, edge_in_line));
+  // A speck 18 mm from an edge's side: the edge faces it, the speck has no edge.
+  std::vector<Eigen::Vector2d> near_speck;
+  for (int k = 0; k < 14; ++k) near_speck.emplace_back(25.0 + 2.8 * uniform(random), 18.0 + 2.8 * uniform(random));
+  EXPECT_TRUE(PiecesFaceEachOtherWithEdges(edge, near_speck, before));
+  EXPECT_FALSE(PiecesFaceEachOtherWithEdges(edge, near_speck));
+}
+
 TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
   std::mt19937 random(kSeed);
   // Two long edges of a 75 x 60 mm face, 60 mm apart (yaw 30 degrees).
