@@ -51,14 +51,20 @@ std::string ObjectPoseOptions::Check() const {
                min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
     out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
            "min_outline_fraction in [0, 1]";
-  } else if (!(min_outline_piece_fraction >= 0.0 && min_facing_side_mm >= 0.0)) {
-    out << "ObjectPoseOptions: min_outline_piece_fraction and min_facing_side_mm must be >= 0 (are "
-        << min_outline_piece_fraction << ", " << min_facing_side_mm << ")";
+  } else if (!(min_outline_piece_fraction >= 0.0 && min_facing_side_mm >= 0.0 &&
+               max_thin_piece_width_mm >= 0.0)) {
+    out << "ObjectPoseOptions: min_outline_piece_fraction, min_facing_side_mm and "
+           "max_thin_piece_width_mm must be >= 0 (are "
+        << min_outline_piece_fraction << ", " << min_facing_side_mm << ", "
+        << max_thin_piece_width_mm << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
-  } else if (!(min_top_neighbours >= 0 && top_neighbour_radius_mm >= 0.0)) {
-    out << "ObjectPoseOptions: min_top_neighbours and top_neighbour_radius_mm must be >= 0 (are "
-        << min_top_neighbours << ", " << top_neighbour_radius_mm << ")";
+  } else if (!(min_top_group_points >= 0 && top_group_link_mm >= 0.0 &&
+               max_trim_yaw_change_deg >= 0.0)) {
+    out << "ObjectPoseOptions: min_top_group_points, top_group_link_mm and "
+           "max_trim_yaw_change_deg must be >= 0 (are "
+        << min_top_group_points << ", " << top_group_link_mm << ", " << max_trim_yaw_change_deg
+        << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -221,18 +227,36 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   }
   pose.height_mm = height;
   pose.top_points = static_cast<int>(top_xy.size());
-  if (options.min_top_neighbours > 0) {
-    // Lone top points are mismatches: the outline is fitted without them.
-    const double radius_squared = options.top_neighbour_radius_mm * options.top_neighbour_radius_mm;
+  if (options.min_top_group_points > 1) {
+    // Groups of top points linked within top_group_link_mm (union-find); the small ones are
+    // mismatches and the outline is fitted without them.
+    const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+    std::vector<std::size_t> parent(top_xy.size());
+    for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
+    const auto root = [&](std::size_t a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (std::size_t a = 0; a < top_xy.size(); ++a) {
+      for (std::size_t b = a + 1; b < top_xy.size(); ++b) {
+        if ((top_xy[a] - top_xy[b]).squaredNorm() <= link_squared) parent[root(a)] = root(b);
+      }
+    }
+    std::vector<int> group_size(top_xy.size(), 0);
+    for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
     std::vector<Eigen::Vector2d> kept;
     for (std::size_t a = 0; a < top_xy.size(); ++a) {
-      int neighbours = 0;
-      for (std::size_t b = 0; b < top_xy.size() && neighbours < options.min_top_neighbours; ++b) {
-        if (b != a && (top_xy[a] - top_xy[b]).squaredNorm() <= radius_squared) ++neighbours;
-      }
-      if (neighbours >= options.min_top_neighbours) kept.push_back(top_xy[a]);
+      if (group_size[root(a)] >= options.min_top_group_points) kept.push_back(top_xy[a]);
     }
-    if (!kept.empty()) top_xy = std::move(kept);
+    // Mismatches beyond an edge stretch the rectangle across it; where leaving them out turns
+    // the rectangle instead (a small, nearly square top whose corners are the small groups,
+    // seed 11054), they were the face's own corners.
+    if (!kept.empty() && kept.size() < top_xy.size() &&
+        std::abs(NormaliseAxisAngle(MinAreaRectangle(kept).yaw_deg -
+                                    MinAreaRectangle(top_xy).yaw_deg)) <=
+            options.max_trim_yaw_change_deg) {
+      top_xy = std::move(kept);
+    }
   }
   pose.top_rectangle = MinAreaRectangle(top_xy);
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
@@ -426,10 +450,15 @@ bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
   for (const auto& p : second) second_centre += p;
   first_centre /= static_cast<double>(first.size());
   second_centre /= static_cast<double>(second.size());
+  // Towards a line or a speck, a side shorter than min_facing_side_mm (an end) is no edge.
+  const auto min_side_towards = [&](const std::vector<Eigen::Vector2d>& other) {
+    return MinAreaRectangle(other).width <= options.max_thin_piece_width_mm ? options.min_facing_side_mm
+                                                                           : 0.0;
+  };
   return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm,
-                            options.min_facing_side_mm) >= options.min_facing_edge_coverage &&
+                            min_side_towards(second)) >= options.min_facing_edge_coverage &&
          FacingSideCoverage(second, first_centre, options.facing_edge_band_mm,
-                            options.min_facing_side_mm) >= options.min_facing_edge_coverage;
+                            min_side_towards(first)) >= options.min_facing_edge_coverage;
 }
 
 bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,

@@ -32,12 +32,17 @@ struct ObjectPoseOptions {
   /// of all the cluster's points (x, y), at the top height.
   bool centroid_from_rectangle = true;
   YawMethod yaw_method = YawMethod::kMinAreaRectangle;
-  /// The top face's outline (rectangle, hull, circle) ignores a top-layer point with fewer than
-  /// this many other top-layer points within top_neighbour_radius_mm: a lone mismatch at the top
-  /// height stretches the rectangle (seed 10147: one point 12 mm beyond a 72 x 43 mm box's top
-  /// put its centre 5.8 mm off); a face's outline and marks are dense. 0 keeps every point.
-  int min_top_neighbours = 1;
-  double top_neighbour_radius_mm = 5.0;
+  /// The top face's outline (rectangle, hull, circle) ignores top-layer points in groups of
+  /// fewer than this many (points linked within top_group_link_mm): a few mismatches at the top
+  /// height stretch the rectangle (seed 10147: one point 12 mm beyond a 72 x 43 mm box's top put
+  /// its centre 5.8 mm off; seed 12086: three points 10-12 mm out, 5.6 mm off); a face's outline
+  /// is one dense chain, its marks blobs inside it. 0 or 1 keeps every point.
+  int min_top_group_points = 4;
+  double top_group_link_mm = 5.0;
+  /// ... unless leaving them out turns the rectangle by more than this (degrees): mismatches
+  /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
+  /// turned 73 degrees).
+  double max_trim_yaw_change_deg = 10.0;
   /// Round tops: a circle is fitted to the vertices of the top face's convex hull; when their
   /// RMS radial residual is below this fraction of the radius (a rectangle's corners and sides
   /// are 10 % or more off any circle) the part is round and, with centroid_from_rectangle, its
@@ -69,11 +74,14 @@ struct ObjectPoseOptions {
   /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
   /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
   double min_facing_edge_coverage = 0.6;
-  /// ... on a facing side at least this long (mm): a thin piece seen end-on, or a speck, faces
-  /// the other with no edge (seed 10188: two pieces of one 74 mm edge, 17 mm apart in line,
+  /// ... on a facing side at least this long (mm) when the other piece is a line or a speck
+  /// too (at most max_thin_piece_width_mm wide): a thin piece seen end-on, or a speck, faces
+  /// another such with no edge (seed 10188: two pieces of one 74 mm edge, 17 mm apart in line,
   /// "faced each other" with their 0.5 mm ends and stayed apart; seed 10179: a 2.8 mm speck kept
-  /// a plain face's edge from the rest of it; a default part's sides are >= 25 mm).
+  /// a plain face's edge from the rest of it). A line pointing end-on at a whole face is no
+  /// piece of it and still faces it (seed 11088: a 24 mm line 11 mm from a 44 x 31 mm box).
   double min_facing_side_mm = 5.0;
+  double max_thin_piece_width_mm = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
   double max_end_yaw_difference_deg = 5.0;
@@ -201,8 +209,9 @@ bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
                                     const ObjectPoseOptions& options = {});
 
 /// Whether each piece (table plane, mm) has a dense straight edge - its own minimum-area
-/// rectangle's side, at least min_facing_side_mm long - facing the other: two parts standing
-/// apart, not the pieces of one face (the cut across a split textured face is no straight edge).
+/// rectangle's side, at least min_facing_side_mm long where the other is a line or a speck -
+/// facing the other: two parts standing apart, not the pieces of one face (the cut across a
+/// split textured face is no straight edge).
 bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
                                   const std::vector<Eigen::Vector2d>& second,
                                   const ObjectPoseOptions& options = {});

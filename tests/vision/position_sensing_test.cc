@@ -456,13 +456,32 @@ TEST(PositionSensing, PiecesOfOneEdgeInLineJoin) {
       << "the failure the rule exists for";
 }
 
+TEST(PositionSensing, ALinePointingAtAPartDoesNotJoinIt) {
+  // Issue 12 stress run, `render --seed 11088`: a 24 mm line of points at 24 mm height points
+  // end-on at a 44 x 31 mm box, 23 mm tall, 11 mm away. With min_facing_side_mm applied towards
+  // whole parts too, the line's end was no edge, the near-piece rule joined it and the box's pose
+  // lay 17 mm off (flagged merged). An end is no edge only towards a line or a speck
+  // (max_thin_piece_width_mm).
+  PositionSensingOptions before = CpuOptions();
+  before.pose.max_thin_piece_width_mm = std::numeric_limits<double>::infinity();
+  const SensedTwice sensed = SenseWithAndWithout(11088, before);
+  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
+  EXPECT_EQ(sensed.truth.false_objects, 0);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
+  double worst_before = 0.0;
+  for (const TruthPairing& pair : sensed.truth_before.pairs) {
+    worst_before = std::max(worst_before, pair.centroid_error_mm);
+  }
+  EXPECT_GT(worst_before, 10.0) << "the failure the rule exists for";
+}
+
 TEST(PositionSensing, ALoneMismatchDoesNotStretchTheTopFace) {
   // Issue 12 stress run, `render --seed 10147`: a 72 x 43 mm box, 114 mm tall; a streak of
   // mismatches rising off its top left one point in the top layer 12 mm beyond its edge, and
   // the top rectangle (72 x 56 mm) put the centre 5.8 mm off. Lone top points are left out of
-  // the outline (min_top_neighbours).
+  // the outline (min_top_group_points).
   PositionSensingOptions before = CpuOptions();
-  before.pose.min_top_neighbours = 0;
+  before.pose.min_top_group_points = 0;
   const SensedTwice sensed = SenseWithAndWithout(10147, before);
   EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
   EXPECT_EQ(sensed.truth.false_objects, 0);
@@ -472,6 +491,31 @@ TEST(PositionSensing, ALoneMismatchDoesNotStretchTheTopFace) {
     worst_before = std::max(worst_before, pair.centroid_error_mm);
   }
   EXPECT_GT(worst_before, 4.0) << "the failure the rule exists for";
+}
+
+TEST(PositionSensing, ASmallTopKeepsTheCornersThatOrientIt) {
+  // Issue 12 stress run, `render --seed 11054`: a 34 x 27 mm box, 120 mm tall, whose top shows
+  // two of its corners as groups of under min_top_group_points. Left out as mismatches, they
+  // turned the rectangle 73 degrees (flagged merged). Small groups are left out only where the
+  // rectangle keeps its orientation (max_trim_yaw_change_deg): mismatches stretch it, they do
+  // not turn it.
+  PositionSensingOptions before = CpuOptions();
+  before.pose.max_trim_yaw_change_deg = 180.0;
+  const SensedTwice sensed = SenseWithAndWithout(11054, before);
+  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
+  EXPECT_EQ(sensed.truth.false_objects, 0);
+  for (const TruthPairing& pair : sensed.truth.pairs) {
+    EXPECT_LT(pair.centroid_error_mm, 3.0);
+    if (pair.yaw_defined) {
+      EXPECT_LT(pair.yaw_error_deg, 2.0);
+    }
+  }
+  EXPECT_EQ(sensed.report.merged, 0);
+  double worst_yaw_before = 0.0;
+  for (const TruthPairing& pair : sensed.truth_before.pairs) {
+    if (pair.yaw_defined) worst_yaw_before = std::max(worst_yaw_before, pair.yaw_error_deg);
+  }
+  EXPECT_GT(worst_yaw_before, 10.0) << "the failure the rule exists for";
 }
 
 TEST(PositionSensing, ARoundTopStaysApartFromABoxBesideIt) {
