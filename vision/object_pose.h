@@ -98,9 +98,9 @@ struct ObjectPoseOptions {
   double max_hidden_fraction = 0.08;
   /// ... and when at most this many points are seen in the gap between the two pieces (inside
   /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
-  /// height): a count, not a fraction, since the table between two parts 15 mm apart gives
-  /// 6-34 points whatever the parts' sizes (seeds 10013, 10056, 10080, 10099, 10192: whole parts
-  /// of equal height joined into one part between them), a split face hides it.
+  /// height): a count, not a fraction, since the table seen between two parts 15 mm apart does
+  /// not grow with the parts, where a split face hides it (seeds 10080, 10192, 11006: two boxes
+  /// of equal height joined into one part between them; 10013 in part).
   int max_gap_points = 3;
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
