@@ -44,12 +44,27 @@ std::string ObjectPoseOptions::Check() const {
         << ")";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
+  } else if (!(max_gap_points >= 0 && gap_margin_mm >= 0.0 && std::isfinite(gap_margin_mm))) {
+    out << "ObjectPoseOptions: max_gap_points and gap_margin_mm must be >= 0 (are " << max_gap_points
+        << ", " << gap_margin_mm << ")";
   } else if (!(outline_band_fraction >= 0.0 && outline_band_fraction < 0.5 &&
                min_outline_fraction >= 0.0 && min_outline_fraction <= 1.0)) {
     out << "ObjectPoseOptions: outline_band_fraction must be in [0, 0.5) and "
            "min_outline_fraction in [0, 1]";
+  } else if (!(min_outline_piece_fraction >= 0.0 && min_facing_side_mm >= 0.0 &&
+               max_thin_piece_width_mm >= 0.0)) {
+    out << "ObjectPoseOptions: min_outline_piece_fraction, min_facing_side_mm and "
+           "max_thin_piece_width_mm must be >= 0 (are "
+        << min_outline_piece_fraction << ", " << min_facing_side_mm << ", "
+        << max_thin_piece_width_mm << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
+  } else if (!(min_top_group_points >= 0 && top_group_link_mm >= 0.0 &&
+               max_trim_yaw_change_deg >= 0.0)) {
+    out << "ObjectPoseOptions: min_top_group_points, top_group_link_mm and "
+           "max_trim_yaw_change_deg must be >= 0 (are "
+        << min_top_group_points << ", " << top_group_link_mm << ", " << max_trim_yaw_change_deg
+        << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -212,6 +227,37 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
   }
   pose.height_mm = height;
   pose.top_points = static_cast<int>(top_xy.size());
+  if (options.min_top_group_points > 1) {
+    // Groups of top points linked within top_group_link_mm (union-find); the small ones are
+    // mismatches and the outline is fitted without them.
+    const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+    std::vector<std::size_t> parent(top_xy.size());
+    for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
+    const auto root = [&](std::size_t a) {
+      while (parent[a] != a) a = parent[a] = parent[parent[a]];
+      return a;
+    };
+    for (std::size_t a = 0; a < top_xy.size(); ++a) {
+      for (std::size_t b = a + 1; b < top_xy.size(); ++b) {
+        if ((top_xy[a] - top_xy[b]).squaredNorm() <= link_squared) parent[root(a)] = root(b);
+      }
+    }
+    std::vector<int> group_size(top_xy.size(), 0);
+    for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
+    std::vector<Eigen::Vector2d> kept;
+    for (std::size_t a = 0; a < top_xy.size(); ++a) {
+      if (group_size[root(a)] >= options.min_top_group_points) kept.push_back(top_xy[a]);
+    }
+    // Mismatches beyond an edge stretch the rectangle across it; where leaving them out turns
+    // the rectangle instead (a small, nearly square top whose corners are the small groups,
+    // seed 11054), they were the face's own corners.
+    if (!kept.empty() && kept.size() < top_xy.size() &&
+        std::abs(NormaliseAxisAngle(MinAreaRectangle(kept).yaw_deg -
+                                    MinAreaRectangle(top_xy).yaw_deg)) <=
+            options.max_trim_yaw_change_deg) {
+      top_xy = std::move(kept);
+    }
+  }
   pose.top_rectangle = MinAreaRectangle(top_xy);
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
@@ -313,6 +359,44 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
   return count;
 }
 
+// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
+double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
+  double distance = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < hull.size(); ++k) {
+    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
+  }
+  return distance;
+}
+
+// Points (not in clusters a or b, not weak) seen more than 2 top layers below or above the
+// joint top in the gap between two pieces: inside the hull of their joint top face, more than
+// gap_margin_mm inside its outline (the part's sides and base edge lie under the outline of its
+// face), and not under one piece's own top (a mismatch there says nothing about the gap). Two
+// parts standing apart show the table, a lower part, or their own sides facing each other
+// between them; the pieces of one face hide all of that.
+int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
+                       const std::vector<int>& cluster_of_point, int a, int b,
+                       const std::vector<Eigen::Vector2d>& joint_hull,
+                       const std::vector<Eigen::Vector2d>& hull_a,
+                       const std::vector<Eigen::Vector2d>& hull_b, double height,
+                       const ObjectPoseOptions& options, const std::vector<bool>* weak) {
+  if (joint_hull.size() < 3) return 0;
+  int count = 0;
+  for (std::size_t i = 0; i < points_in_world.size(); ++i) {
+    const Eigen::Vector3d& p = points_in_world[i];
+    if (cluster_of_point[i] == a || cluster_of_point[i] == b) continue;
+    if (weak != nullptr && (*weak)[i]) continue;
+    if (!(std::abs(p.z() - height) > 2.0 * options.top_layer_mm)) continue;
+    const Eigen::Vector2d xy = p.head<2>();
+    if (!InsideConvexPolygon(joint_hull, xy) ||
+        DistanceToPolygonOutline(joint_hull, xy) <= options.gap_margin_mm) {
+      continue;
+    }
+    if (!InsideConvexPolygon(hull_a, xy) && !InsideConvexPolygon(hull_b, xy)) ++count;
+  }
+  return count;
+}
+
 // Distance from `p` inside (or outside) `rectangle` to its outline.
 double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
   const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
@@ -328,7 +412,7 @@ double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vec
 // piece's points (1 mm bins within `band` of the side): a part's own edge facing the gap is a
 // dense straight line; the cut across a split face is not.
 double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
-                          double band) {
+                          double band, double min_side) {
   const Rectangle2D rectangle = MinAreaRectangle(piece);
   if (rectangle.length < 1.0) return 0.0;
   const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
@@ -342,6 +426,7 @@ double FacingSideCoverage(const std::vector<Eigen::Vector2d>& piece, const Eigen
   const Eigen::Vector2d direction = across_u ? v : u;
   const double offset = across_u ? 0.5 * rectangle.length : 0.5 * rectangle.width;
   const double side_length = across_u ? rectangle.width : rectangle.length;
+  if (side_length < min_side) return 0.0;  // a thin piece's end is no edge
   const int bins = std::max(1, static_cast<int>(std::floor(side_length)));
   std::vector<bool> covered(static_cast<std::size_t>(bins), false);
   for (const auto& p : piece) {
@@ -365,10 +450,15 @@ bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
   for (const auto& p : second) second_centre += p;
   first_centre /= static_cast<double>(first.size());
   second_centre /= static_cast<double>(second.size());
-  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm) >=
-             options.min_facing_edge_coverage &&
-         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm) >=
-             options.min_facing_edge_coverage;
+  // Towards a line or a speck, a side shorter than min_facing_side_mm (an end) is no edge.
+  const auto min_side_towards = [&](const std::vector<Eigen::Vector2d>& other) {
+    return MinAreaRectangle(other).width <= options.max_thin_piece_width_mm ? options.min_facing_side_mm
+                                                                           : 0.0;
+  };
+  return FacingSideCoverage(first, second_centre, options.facing_edge_band_mm,
+                            min_side_towards(second)) >= options.min_facing_edge_coverage &&
+         FacingSideCoverage(second, first_centre, options.facing_edge_band_mm,
+                            min_side_towards(first)) >= options.min_facing_edge_coverage;
 }
 
 bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
@@ -416,6 +506,9 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   const Rectangle2D rectangle = MinAreaRectangle(joint);
   const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
   for (const auto* piece : {&first, &second}) {
+    if (MinAreaRectangle(*piece).length < options.min_outline_piece_fraction * rectangle.width) {
+      return false;  // a speck, no stretch of the outline
+    }
     int on_outline = 0;
     for (const auto& p : *piece) {
       if (DistanceToRectangleOutline(rectangle, p) <= band) ++on_outline;
@@ -486,13 +579,17 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           joint = ConvexHull(joint);
           const double height = 0.5 * (poses[small].height_mm + poses[large].height_mm);
           // A round top face is complete when its hull fits a circle: a piece outside that
-          // circle belongs to something else.
-          const bool outside_circle =
-              poses[large].round &&
-              std::any_of(top_hulls[small].begin(), top_hulls[small].end(), [&](const Eigen::Vector2d& p) {
-                return (p - poses[large].circle_centre).norm() >
-                       poses[large].circle_radius + options.top_layer_mm;
-              });
+          // circle belongs to something else - whichever of the two is round (seed 10099: a
+          // round 53 mm top, the smaller cluster, was joined with a box beside it).
+          const auto outside_circle_of = [&](std::size_t round, std::size_t other) {
+            return poses[round].round &&
+                   std::any_of(top_hulls[other].begin(), top_hulls[other].end(),
+                               [&](const Eigen::Vector2d& p) {
+                                 return (p - poses[round].circle_centre).norm() >
+                                        poses[round].circle_radius + options.top_layer_mm;
+                               });
+          };
+          const bool outside_circle = outside_circle_of(large, small) || outside_circle_of(small, large);
           if (outside_circle || top_hulls[small].size() < 3 || top_hulls[large].size() < 3 ||
               std::abs(poses[small].height_mm - poses[large].height_mm) >
                   options.max_split_height_difference_mm ||
@@ -501,7 +598,10 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
               PointsHiddenUnderJointTop(points_in_world, cluster_of_point, static_cast<int>(small),
                                         static_cast<int>(large), joint, height, options, weak) >
                   options.max_hidden_fraction *
-                      static_cast<double>(clusters[small].size() + clusters[large].size())) {
+                      static_cast<double>(clusters[small].size() + clusters[large].size()) ||
+              PointsSeenInTheGap(points_in_world, cluster_of_point, static_cast<int>(small),
+                                 static_cast<int>(large), joint, top_hulls[small], top_hulls[large],
+                                 height, options, weak) > options.max_gap_points) {
             continue;
           }
         }

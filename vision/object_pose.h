@@ -32,6 +32,17 @@ struct ObjectPoseOptions {
   /// of all the cluster's points (x, y), at the top height.
   bool centroid_from_rectangle = true;
   YawMethod yaw_method = YawMethod::kMinAreaRectangle;
+  /// The top face's outline (rectangle, hull, circle) ignores top-layer points in groups of
+  /// fewer than this many (points linked within top_group_link_mm): a few mismatches at the top
+  /// height stretch the rectangle (seed 10147: one point 12 mm beyond a 72 x 43 mm box's top put
+  /// its centre 5.8 mm off; seed 12086: three points 10-12 mm out, 5.6 mm off); a face's outline
+  /// is one dense chain, its marks blobs inside it. 0 or 1 keeps every point.
+  int min_top_group_points = 4;
+  double top_group_link_mm = 5.0;
+  /// ... unless leaving them out turns the rectangle by more than this (degrees): mismatches
+  /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
+  /// turned 73 degrees).
+  double max_trim_yaw_change_deg = 10.0;
   /// Round tops: a circle is fitted to the vertices of the top face's convex hull; when their
   /// RMS radial residual is below this fraction of the radius (a rectangle's corners and sides
   /// are 10 % or more off any circle) the part is round and, with centroid_from_rectangle, its
@@ -51,14 +62,26 @@ struct ObjectPoseOptions {
   /// fraction of the joint rectangle's width (circle: of its radius), at least top_layer_mm, of
   /// it ...
   double outline_band_fraction = 0.2;
-  /// ... and each piece needs this fraction of its top points on the outline.
+  /// ... and each piece needs this fraction of its top points on the outline ...
   double min_outline_fraction = 0.9;
+  /// ... and must be a stretch of it, at least this fraction of the joint rectangle's width
+  /// long: a speck of a few points lies on the outline of any rectangle it spans (seed 10163: a
+  /// 3.5 x 3.0 mm speck joined a piece 140 mm away, and the 185 mm "face" swallowed two parts).
+  double min_outline_piece_fraction = 0.25;
   /// Near pieces (within max_top_face_gap_mm) stay apart when each has an edge facing the other
   /// (PiecesFaceEachOtherWithEdges): points within this distance (mm) of the facing side ...
   double facing_edge_band_mm = 2.0;
   /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
   /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
   double min_facing_edge_coverage = 0.6;
+  /// ... on a facing side at least this long (mm) when the other piece is a line or a speck
+  /// too (at most max_thin_piece_width_mm wide): a thin piece seen end-on, or a speck, faces
+  /// another such with no edge (seed 10188: two pieces of one 74 mm edge, 17 mm apart in line,
+  /// "faced each other" with their 0.5 mm ends and stayed apart; seed 10179: a 2.8 mm speck kept
+  /// a plain face's edge from the rest of it). A line pointing end-on at a whole face is no
+  /// piece of it and still faces it (seed 11088: a 24 mm line 11 mm from a 44 x 31 mm box).
+  double min_facing_side_mm = 5.0;
+  double max_thin_piece_width_mm = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
   double max_end_yaw_difference_deg = 5.0;
@@ -73,6 +96,15 @@ struct ObjectPoseOptions {
   /// face's texture) are at most this fraction of their points: a gap between two parts shows
   /// the dusty table, dense with points.
   double max_hidden_fraction = 0.08;
+  /// ... and when at most this many points are seen in the gap between the two pieces (inside
+  /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
+  /// height): a count, not a fraction, since the table seen between two parts 15 mm apart does
+  /// not grow with the parts, where a split face hides it (seeds 10080, 10192, 11006: two boxes
+  /// of equal height joined into one part between them; 10013 in part).
+  int max_gap_points = 3;
+  /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
+  /// base edge lie under its top face's outline).
+  double gap_margin_mm = 3.0;
   std::string Check() const;
 };
 
@@ -163,7 +195,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
 /// points' hull fits one circle and min_outline_fraction of them lie on it, or when
 /// min_outline_fraction of each piece's points lie within outline_band_fraction of the joint
 /// minimum-area rectangle's width from its outline (two parts standing apart put their inner
-/// sides deep inside the joint rectangle).
+/// sides deep inside the joint rectangle) and each piece is at least min_outline_piece_fraction
+/// of that width long (a speck lies on any outline).
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options = {});
@@ -176,8 +209,9 @@ bool PiecesAreOppositeEndsOfOneFace(const std::vector<Eigen::Vector2d>& first,
                                     const ObjectPoseOptions& options = {});
 
 /// Whether each piece (table plane, mm) has a dense straight edge - its own minimum-area
-/// rectangle's side - facing the other: two parts standing apart, not the pieces of one face
-/// (the cut across a split textured face is no straight edge).
+/// rectangle's side, at least min_facing_side_mm long where the other is a line or a speck -
+/// facing the other: two parts standing apart, not the pieces of one face (the cut across a
+/// split textured face is no straight edge).
 bool PiecesFaceEachOtherWithEdges(const std::vector<Eigen::Vector2d>& first,
                                   const std::vector<Eigen::Vector2d>& second,
                                   const ObjectPoseOptions& options = {});

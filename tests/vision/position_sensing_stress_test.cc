@@ -14,6 +14,8 @@
 //   HNNSTEREO_STRESS_TRUE_CAMERAS=1  sense with the true cameras instead of calibrating
 //   HNNSTEREO_STRESS_SEEDS=A,B,...   only these seeds of the range (debugging one failure)
 //   HNNSTEREO_STRESS_OLD_MERGE=1     without the outline join (the rule before issue 12)
+//   HNNSTEREO_STRESS_NO_GAP_GUARD=1  without the gap-point guard on the island merge
+//                                    (ObjectPoseOptions::max_gap_points unlimited, for comparison)
 //   HNNSTEREO_STRESS_STOP=decisions  the decisions stop rule (hnn-default's) instead of the energy rule
 // Without HNNSTEREO_STRESS=1 the test is skipped.
 #include <gtest/gtest.h>
@@ -25,6 +27,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <string>
 #include <unistd.h>
@@ -164,6 +167,9 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   }
   sensing.matcher.engine = hnn::EngineKind::kCpu;
   if (Env("HNNSTEREO_STRESS_OLD_MERGE", "0") == "1") sensing.pose.join_face_outlines = false;
+  if (Env("HNNSTEREO_STRESS_NO_GAP_GUARD", "0") == "1") {
+    sensing.pose.max_gap_points = std::numeric_limits<int>::max();
+  }
   // Debugging: keep small parts (HNNSTEREO_STRESS_MIN_STRONG=1) to see where a face's pieces go.
   sensing.min_strong_points = std::stoi(Env("HNNSTEREO_STRESS_MIN_STRONG", "60"));
   if (sensing.min_strong_points < 60) sensing.min_top_fraction = 0.0;
