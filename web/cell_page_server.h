@@ -33,11 +33,11 @@ struct CellPageOptions {
   int write_timeout_s = 5;  ///< a client that stops reading is dropped after this long
   /// At most this many PNG answers a second over all clients (the rest wait their turn): bounds
   /// the page's total work - encoding, copying, the kernel's sends - however many clients poll
-  /// as fast as they can. The image changes once a cycle, so 20 viewers refreshing every second
-  /// fit. 20, not 50: once the match got faster (cycle ~120-180 ms on seed 100) serving 25-30
-  /// images a second to 50 polling clients on the same two cores cost 9-24 % of the cycle time
-  /// (load test, machine shared with a compile). 0 = no limit.
-  double max_images_per_second = 20.0;
+  /// as fast as they can. The image changes once a cycle, so 10 viewers refreshing every second
+  /// fit. 10, not 20: once the cycle fell to 84-88 ms (seed 100), 18 images a second to 50
+  /// polling clients cost the loop 10-13 % of its cycle time on two cores even at nice 19
+  /// (1.04-1.07 at 10; docs/robot.md). 0 = no limit.
+  double max_images_per_second = 10.0;
   /// Empty when usable; otherwise a one-line reason (bad port, non-loopback host without token).
   std::string Check() const;
 };
