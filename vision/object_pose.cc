@@ -334,6 +334,16 @@ double HullGap(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::V
   return gap;
 }
 
+// Point i belongs to neither piece a nor b, is not weak, and lies more than 2 top layers off the
+// joint top's `height`: what the hidden-point and gap-point rules count.
+bool OffTheJointTop(std::size_t i, const std::vector<Eigen::Vector3d>& points_in_world,
+                    const std::vector<int>& cluster_of_point, int a, int b, double height,
+                    const ObjectPoseOptions& options, const std::vector<bool>* weak) {
+  if (cluster_of_point[i] == a || cluster_of_point[i] == b) return false;
+  if (weak != nullptr && (*weak)[i]) return false;
+  return std::abs(points_in_world[i].z() - height) > 2.0 * options.top_layer_mm;
+}
+
 // Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces and more
 // than 2 top layers below or above their height: a solid top face hides what is under it, and
 // nothing stands on it.
@@ -350,9 +360,7 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
   int count = 0;
   for (std::size_t i = 0; i < points_in_world.size(); ++i) {
     const Eigen::Vector3d& p = points_in_world[i];
-    if (cluster_of_point[i] == a || cluster_of_point[i] == b) continue;
-    if (weak != nullptr && (*weak)[i]) continue;
-    if (!(std::abs(p.z() - height) > 2.0 * options.top_layer_mm)) continue;
+    if (!OffTheJointTop(i, points_in_world, cluster_of_point, a, b, height, options, weak)) continue;
     if (p.x() < low.x() || p.y() < low.y() || p.x() > high.x() || p.y() > high.y()) continue;
     if (InsideConvexPolygon(hull, p.head<2>())) ++count;
   }
@@ -383,11 +391,8 @@ int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
   if (joint_hull.size() < 3) return 0;
   int count = 0;
   for (std::size_t i = 0; i < points_in_world.size(); ++i) {
-    const Eigen::Vector3d& p = points_in_world[i];
-    if (cluster_of_point[i] == a || cluster_of_point[i] == b) continue;
-    if (weak != nullptr && (*weak)[i]) continue;
-    if (!(std::abs(p.z() - height) > 2.0 * options.top_layer_mm)) continue;
-    const Eigen::Vector2d xy = p.head<2>();
+    if (!OffTheJointTop(i, points_in_world, cluster_of_point, a, b, height, options, weak)) continue;
+    const Eigen::Vector2d xy = points_in_world[i].head<2>();
     if (!InsideConvexPolygon(joint_hull, xy) ||
         DistanceToPolygonOutline(joint_hull, xy) <= options.gap_margin_mm) {
       continue;
