@@ -392,6 +392,15 @@ SensedTwice SenseWithAndWithout(std::uint64_t seed, const PositionSensingOptions
   return sensed;
 }
 
+// With the rule: every part found within 4 mm of its true centre, no false part; without it
+// (`truth_before`), at least one part lost - the failure the rule exists for.
+void ExpectEveryPartFoundAndOneLostWithoutTheRule(const SensedTwice& sensed, const char* what) {
+  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
+  EXPECT_EQ(sensed.truth.false_objects, 0);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
+  EXPECT_LT(sensed.truth_before.detected, static_cast<int>(sensed.scene.objects.size())) << what;
+}
+
 TEST(PositionSensing, TwoPartsShowingTheTableBetweenThemStayTwo) {
   // Issue 12 stress run, `render --seed 10080`: a 70 x 34 mm and a 68 x 54 mm box, 58 and 57 mm
   // tall, stand 15+ mm apart. Neither shows an edge facing the other along the whole gap, and
@@ -401,11 +410,7 @@ TEST(PositionSensing, TwoPartsShowingTheTableBetweenThemStayTwo) {
   PositionSensingOptions before = CpuOptions();
   before.pose.max_gap_points = std::numeric_limits<int>::max();
   const SensedTwice sensed = SenseWithAndWithout(10080, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
-  EXPECT_LT(sensed.truth_before.detected, static_cast<int>(sensed.scene.objects.size()))
-      << "the failure the gap-point guard exists for";
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the failure the gap-point guard exists for");
 }
 
 TEST(PositionSensing, SpecksDoNotOutlineOneFaceAcrossTwoParts) {
@@ -417,11 +422,7 @@ TEST(PositionSensing, SpecksDoNotOutlineOneFaceAcrossTwoParts) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_outline_piece_fraction = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(10163, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
-  EXPECT_LT(sensed.truth_before.detected, static_cast<int>(sensed.scene.objects.size()))
-      << "the failure the rule exists for";
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the failure the rule exists for");
 }
 
 TEST(PositionSensing, ATopFaceSeenAsItsTwoLongEdgesIsOnePart) {
@@ -433,11 +434,7 @@ TEST(PositionSensing, ATopFaceSeenAsItsTwoLongEdgesIsOnePart) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_facing_side_mm = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(10179, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
-  EXPECT_LT(sensed.truth_before.detected, static_cast<int>(sensed.scene.objects.size()))
-      << "the failure the rule exists for";
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the failure the rule exists for");
 }
 
 TEST(PositionSensing, PiecesOfOneEdgeInLineJoin) {
