@@ -300,8 +300,7 @@ class DeviceNetwork {
     const NetworkLayout& L = net_.layout;
     const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
     if (asked != WeightStorage::kAuto) return asked;
-    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
-    if (gpu && row_pad_ > 8) return WeightStorage::kCsr;
+    if (runtime_.is_gpu() && row_pad_ > 8) return WeightStorage::kCsr;
     return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
                ? WeightStorage::kBlockedHalf
                : WeightStorage::kCsr;
@@ -403,7 +402,7 @@ class DeviceNetwork {
     blocks_ = runtime_.ScratchBuffer("weight blocks", block_bytes);
 
     const EnergyParams params = Params(energy);
-    const bool gpu = runtime_.device().getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU;
+    const bool gpu = runtime_.is_gpu();
     const bool per_weight =
         engine.block_build == OpenClEngineOptions::BlockBuild::kPerWeight ||
         (engine.block_build == OpenClEngineOptions::BlockBuild::kAuto && gpu);

@@ -154,7 +154,8 @@ Runtime::Runtime(cl::Context context, cl::Device device, std::string description
     : context_(std::move(context)),
       device_(std::move(device)),
       queue_(context_, device_),
-      description_(std::move(description)) {}
+      description_(std::move(description)),
+      is_gpu_((device_.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0) {}
 
 std::unique_ptr<Runtime> Runtime::Create(const DeviceSelection& selection, std::string* why_not) {
   std::vector<cl::Platform> platforms;

@@ -80,6 +80,9 @@ class Runtime {
   cl::CommandQueue& queue() { return queue_; }
   /// "<device name> (<platform name>)".
   std::string description() const { return description_; }
+  /// CL_DEVICE_TYPE_GPU: where the engine's choices differ (work-group per row, per-weight
+  /// build, csr for wide rows) and the roofline is the card's own memory.
+  bool is_gpu() const { return is_gpu_; }
 
   /// The program built from the embedded kernel file `name` with `options`, built once per
   /// (source hash, options) and cached here. Throws ProgramBuildError with the log on failure.
@@ -99,6 +102,7 @@ class Runtime {
   cl::Device device_;
   cl::CommandQueue queue_;
   std::string description_;
+  bool is_gpu_ = false;
   std::map<std::tuple<std::string, std::string>, cl::Program> programs_;
   std::map<std::string, std::pair<cl::Buffer, std::size_t>> scratch_;
 };

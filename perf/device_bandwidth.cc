@@ -10,7 +10,7 @@ namespace hnnstereo::perf {
 ReadBandwidth MeasureDeviceReadBandwidth(ocl::Runtime& runtime,
                                          const DeviceReadBandwidthOptions& options) {
   const cl::Device& device = runtime.device();
-  const bool gpu = (device.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0;
+  const bool gpu = runtime.is_gpu();
   const unsigned units = std::max(1u, device.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
   const std::size_t max_alloc = device.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
   std::size_t bytes = std::min(options.bytes, max_alloc / 2);

@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <set>
 #include <sstream>
 #include <nlohmann/json.hpp>
@@ -22,16 +21,12 @@
 #include "host/network_file.h"
 #include "host/opencl_engine.h"
 #include "perf/device_bandwidth.h"
+#include "perf/statistics.h"
 
 namespace {
 
 using namespace hnnstereo;
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using perf::Median;
 
 std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -41,26 +36,19 @@ std::string ReadFile(const std::string& path) {
   return text.str();
 }
 
-std::vector<std::string> Split(const std::string& list) {
-  std::vector<std::string> out;
-  std::stringstream in(list);
-  for (std::string item; std::getline(in, item, ',');) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 int Run(int argc, char** argv) {
   CLI::App app{"Replays captured Hopfield networks (hnnstereo match --save-network) on an OpenCL "
                "device: every weight storage timed, the device's read bandwidth as the roofline"};
   std::vector<std::string> files;
-  std::string storages = "csr,blocked-float,blocked-half,on-the-fly", device, out;
+  std::vector<std::string> storages = {"csr", "blocked-float", "blocked-half", "on-the-fly"};
+  std::string device, out;
   std::string block_step = "auto";
   int repeats = 5, warmup = 1, rows_per_item = 0;
   double time_step = 0.0;
   bool cpu = false, profile = false;
   app.add_option("networks", files, "Network files (HNNET1)")->required();
-  app.add_option("--storages", storages, "Weight storages of the opencl engine, comma-separated");
+  app.add_option("--storages", storages, "Weight storages of the opencl engine, comma-separated")
+      ->delimiter(',');
   app.add_option("--repeats", repeats, "Timed solves per case (median reported)")->check(CLI::Range(1, 1000));
   app.add_option("--warmup", warmup, "Untimed solves first (kernel compilation)")->check(CLI::Range(0, 100));
   app.add_flag("--cpu", cpu, "Also the cpu reference engine (one timed solve), the winners' baseline");
@@ -86,7 +74,7 @@ int Run(int argc, char** argv) {
   std::unique_ptr<ocl::Runtime> runtime = ocl::Runtime::Create(selection, &why_not);
   if (!runtime) throw std::runtime_error("no OpenCL device: " + why_not);
   std::vector<hnn::WeightStorage> kinds;
-  for (const std::string& name : Split(storages)) {
+  for (const std::string& name : storages) {
     auto storage = hnn::ParseWeightStorage(name);
     if (!storage) throw std::invalid_argument("--storages: unknown storage '" + name + "'");
     kinds.push_back(*storage);

@@ -11,6 +11,7 @@
 #include "host/opencl_engine.h"
 #include "perf/device_bandwidth.h"
 #include "perf/memory_bandwidth.h"
+#include "perf/statistics.h"
 #include "vision/candidates.h"
 #include "vision/correlation.h"
 #include "vision/features.h"
@@ -18,13 +19,6 @@
 
 namespace hnnstereo::perf {
 namespace {
-
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const std::size_t mid = values.size() / 2;
-  return values.size() % 2 ? values[mid] : 0.5 * (values[mid - 1] + values[mid]);
-}
 
 struct Case {
   std::string name;
@@ -134,8 +128,7 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
     }
   }
   const double machine_gbps = json.value("machine_read_gbps", 0.0);
-  const bool gpu_device = runtime != nullptr && (runtime->device().getInfo<CL_DEVICE_TYPE>() &
-                                                 CL_DEVICE_TYPE_GPU) != 0;
+  const bool gpu_device = runtime != nullptr && runtime->is_gpu();
   const double opencl_roofline_gbps =
       gpu_device ? device_gbps : std::max(machine_gbps, device_gbps);
   if (opencl_roofline_gbps > 0) {
