@@ -1,0 +1,243 @@
+#!/usr/bin/env python3
+"""What the matcher's confident wrong matches are, and whether anything the pipeline could add
+would fix them, measured on Middlebury pairs with ground truth (docs/accuracy.md, "What limits
+the 75 % density").
+
+It reads the `match --report` files that `scripts/fit_confidence.py --cache DIR` keeps (the
+default preset) and takes, per pair, the wrong matches (more than 1 px off, as `eval` scores) at
+*non-occluded* pixels among the top SHARE (default 85 %) of matches by the built confidence - the
+errors the acceptance's 75 % density still keeps. For those it prints:
+
+- `truth in 4 peaks`: the true disparity (+-1 px) is among the 4 best local maxima of ZNCC 7 x 7
+  along the row, i.e. among the candidates the network chooses from (hnn-default: K = 4 peaks);
+- `shiftable 5x5`: the same with the best of 5 windows of 5 x 5 (centred, shifted 2 px
+  left/right/up/down) - windows that may avoid crossing the depth edge;
+- `SGBM right` / `SGBM agrees`: StereoSGBM as `eval` runs it (uniqueness 0, left-right check)
+  is within 1 px of the truth / of the HNN's own disparity there.
+
+With `--no-lr-cache DIR` (reports of `fit_confidence.py --match-args=--no-lr-check --cache
+DIR`) it also measures the left-right check as a confidence feature instead of a filter: the
+reverse ZNCC search's agreement (<= 1 px) and distance join the model's features, fitted
+leave-one-pair-out, and the error at 25 / 50 / 75 % of the left Canny (50/150) pixels with
+ground truth is compared with the default (check as a filter). Occluded pixels count as wrong
+there, as in fit_confidence.py.
+
+    python3 scripts/fit_confidence.py --cache /tmp/fc
+    python3 scripts/fit_confidence.py --cache /tmp/fc_nolr --match-args=--no-lr-check
+    python3 scripts/confident_errors.py --cache /tmp/fc --no-lr-cache /tmp/fc_nolr
+Needs numpy, Pillow and cv2 (python3-opencv).
+"""
+import argparse
+import json
+import math
+import os
+import sys
+
+import cv2
+import numpy as np
+from PIL import Image
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import fit_confidence as fc  # noqa: E402  (pair loader, features, logistic fit)
+
+# The right-view ground truth of the sets without an occlusion mask (as vision/middlebury.cc).
+RIGHT_TRUTH = {"disp6.pgm": 8.0, "disp6.png": 4.0, "disp5.png": None}
+
+
+def visible(directory, gt):
+    """Non-occluded left pixels: the set's mask, else a 1 px left-right check of the two
+    ground-truth maps (as `eval`)."""
+    for mask, test in (("nonocc.png", lambda m: m > 128), ("mask0nocc.png", lambda m: m == 255)):
+        path = os.path.join(directory, mask)
+        if os.path.isfile(path):
+            return test(np.asarray(Image.open(path).convert("L")))
+    for stem, scale in RIGHT_TRUTH.items():
+        path = os.path.join(directory, stem)
+        if not os.path.isfile(path):
+            continue
+        raw = np.asarray(Image.open(path).convert("L"), dtype=np.float64)
+        if scale is None:  # 2005/2006 thirds: scale by width as the left map
+            scale = 3.0 if raw.shape[1] < 500 else (2.0 if raw.shape[1] < 900 else 1.0)
+        right = np.where(raw > 0, raw / scale, np.nan)
+        ys, xs = np.nonzero(np.isfinite(gt))
+        xr = np.round(xs - gt[ys, xs]).astype(int)
+        inside = (xr >= 0) & (xr < gt.shape[1])
+        agree = np.zeros(len(xs), bool)
+        agree[inside] = np.abs(right[ys[inside], xr[inside]] - gt[ys[inside], xs[inside]]) <= 1.0
+        out = np.zeros(gt.shape, bool)
+        out[ys, xs] = agree
+        return out
+    return np.isfinite(gt)
+
+
+def read_report(cache, name):
+    with open(os.path.join(cache, name + ".json")) as f:
+        report = json.load(f)
+    columns = report["matches"]["columns"]
+    rows = np.array(report["matches"]["rows"], dtype=np.float64).reshape(-1, len(columns))
+    return rows, {c: i for i, c in enumerate(columns)}
+
+
+def zncc_profile(left, right, x, y, max_disparity, dx, dy, half):
+    """ZNCC of the (2 half + 1)^2 left window centred at (x + dx, y + dy) against the right row,
+    indexed by disparity 0..max_disparity (-1 where the window leaves the image)."""
+    cx, cy = x + dx, y + dy
+    height, width = left.shape
+    out = np.full(max_disparity + 1, -1.0)
+    if cy - half < 0 or cy + half >= height or cx - half < 0 or cx + half >= width:
+        return out
+    x0 = max(0, cx - max_disparity - half)
+    strip = right[cy - half:cy + half + 1, x0:cx + half + 1]
+    if strip.shape[1] < 2 * half + 1:
+        return out
+    score = cv2.matchTemplate(strip, left[cy - half:cy + half + 1, cx - half:cx + half + 1],
+                              cv2.TM_CCOEFF_NORMED)[0]
+    disparity = cx - (x0 + half + np.arange(len(score)))
+    out[disparity] = score
+    return out
+
+
+def best_peaks(score, k):
+    """Disparities of the k highest local maxima of a ZNCC profile."""
+    n = len(score)
+    peaks = [d for d in range(n) if score[d] > -1 and (d == 0 or score[d] >= score[d - 1]) and
+             (d == n - 1 or score[d] >= score[d + 1])]
+    return np.array(sorted(peaks, key=lambda d: -score[d])[:k])
+
+
+def candidate_table(pairs, cache, share):
+    print(f"Wrong matches at non-occluded pixels among the top {100 * share:.0f} % by confidence:\n")
+    print("| pair | wrong | truth in 4 peaks (7x7) | shiftable 5x5 | SGBM right | SGBM agrees |")
+    print("|---|---:|---:|---:|---:|---:|")
+    shifts = [(0, 0), (2, 0), (-2, 0), (0, 2), (0, -2)]
+    for name, (directory, left_path, right_path, gt, max_disparity) in pairs.items():
+        rows, col = read_report(cache, name)
+        xl = np.round(rows[:, col["xl"]]).astype(int)
+        yl = np.round(rows[:, col["yl"]]).astype(int)
+        truth = gt[yl, xl]
+        keep = np.isfinite(truth) & visible(directory, gt)[yl, xl]
+        rows, xl, yl, truth = rows[keep], xl[keep], yl[keep], np.round(truth[keep])
+        disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
+        confidence = rows[:, col["confidence"]]
+        top = np.zeros(len(rows), bool)
+        top[np.argsort(-confidence, kind="stable")[:int(share * len(rows))]] = True
+        wrong = np.where(top & (np.abs(disparity - truth) > 1.0))[0]
+        left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        sgbm = fc.sgbm_agreement(left_path, right_path, max_disparity, 0)[yl, xl]
+        in_peaks = in_shiftable = 0
+        for i in wrong:
+            centred = zncc_profile(left, right, xl[i], yl[i], max_disparity, 0, 0, 3)
+            shiftable = np.max([zncc_profile(left, right, xl[i], yl[i], max_disparity, dx, dy, 2)
+                                for dx, dy in shifts], axis=0)
+            in_peaks += np.any(np.abs(best_peaks(centred, 4) - truth[i]) <= 1)
+            in_shiftable += np.any(np.abs(best_peaks(shiftable, 4) - truth[i]) <= 1)
+        s = sgbm[wrong]
+        valid = np.isfinite(s)
+        right_share = np.mean(valid & (np.abs(np.where(valid, s, 0) - truth[wrong]) <= 1))
+        agree_share = np.mean(valid & (np.abs(np.where(valid, s, 0) - disparity[wrong]) <= 1))
+        n = max(1, len(wrong))
+        print(f"| {name} | {len(wrong)} | {100 * in_peaks / n:.0f} % | {100 * in_shiftable / n:.0f} % | "
+              f"{100 * right_share:.0f} % | {100 * agree_share:.0f} % |")
+
+
+def reverse_check(left, right, rows, col, max_disparity):
+    """The left-right check's reverse search (vision/matcher_presets.cc): the best left x for each
+    right point by ZNCC 7 x 7 over the disparity range; returns |best left x - xl| (0 at borders)."""
+    distance = np.zeros(len(rows))
+    for i, (xr, y, xl) in enumerate(zip(rows[:, col["xr"]], rows[:, col["yl"]], rows[:, col["xl"]])):
+        x, y = int(round(xr)), int(round(y))
+        if y - 3 < 0 or y + 3 >= left.shape[0] or x - 3 < 0 or x + 3 >= left.shape[1]:
+            continue
+        strip = left[y - 3:y + 4, x - 3:min(left.shape[1], x + max_disparity + 4)]
+        if strip.shape[1] < 7:
+            continue
+        score = cv2.matchTemplate(strip, right[y - 3:y + 4, x - 3:x + 4], cv2.TM_CCOEFF_NORMED)[0]
+        distance[i] = abs(x + int(np.argmax(score)) - xl)
+    return distance
+
+
+def soft_check_table(pairs, cache, no_lr_cache):
+    def dataset(report_cache, with_check_features):
+        out = {}
+        for name, (directory, left_path, right_path, gt, max_disparity) in pairs.items():
+            rows, col = read_report(report_cache, name)
+            xl = np.round(rows[:, col["xl"]]).astype(int)
+            yl = np.round(rows[:, col["yl"]]).astype(int)
+            truth = gt[yl, xl]
+            known = np.isfinite(truth)
+            rows = rows[known]
+            disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
+            correct = (np.abs(disparity - np.round(truth[known])) <= 1.0).astype(np.float64)
+            X = fc.feature_columns(rows, col, fc.FEATURES)
+            if with_check_features:
+                left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+                right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+                distance = reverse_check(left, right, rows, col, max_disparity)
+                X = np.hstack([X, (distance <= 1.0)[:, None], np.minimum(distance, 10.0)[:, None]])
+            out[name] = (X, correct)
+        return out
+
+    def leave_one_out(data):
+        result = {}
+        for held_out in data:
+            train = [n for n in data if n != held_out]
+            w = fc.fit_logistic(fc.design(np.vstack([data[n][0] for n in train]), 1e4),
+                                np.concatenate([data[n][1] for n in train]))
+            X, y = data[held_out]
+            result[held_out] = (fc.sigmoid(fc.design(X, 1e4) @ w), y)
+        return result
+
+    filtered = leave_one_out(dataset(cache, False))
+    soft = leave_one_out(dataset(no_lr_cache, True))
+    print("\nLeft-right check as a filter (default) or as a confidence feature: error % of the top "
+          "matches by confidence at a density of the left Canny pixels with ground truth "
+          "(leave-one-pair-out; occluded pixels count as wrong):\n")
+    print("| pair | edge pixels | filter: 25 / 50 / 75 % | feature: 25 / 50 / 75 % |")
+    print("|---|---:|---|---|")
+    pooled = {"filter": np.zeros((3, 2)), "feature": np.zeros((3, 2))}
+    for name, (directory, left_path, _, gt, _) in pairs.items():
+        edges = cv2.Canny(cv2.imread(left_path, cv2.IMREAD_GRAYSCALE), 50, 150) > 0
+        n = int(np.sum(edges & np.isfinite(gt)))
+        cells = []
+        for tag, result in (("filter", filtered), ("feature", soft)):
+            confidence, y = result[name]
+            order = np.argsort(-confidence, kind="stable")
+            figures = []
+            for row, density in enumerate((0.25, 0.5, 0.75)):
+                k = int(density * n)
+                if k > len(y):
+                    figures.append("n/a")
+                    continue
+                wrong = float(np.sum(1.0 - y[order[:k]]))
+                pooled[tag][row] += (wrong, k)
+                figures.append(f"{100 * wrong / k:.2f}")
+            cells.append(" / ".join(figures))
+        print(f"| {name} | {n} | {cells[0]} | {cells[1]} |")
+    print("| pooled over the pairs that reach it | | " + " | ".join(
+        " / ".join(f"{100 * w / max(k, 1):.2f}" for w, k in pooled[tag])
+        for tag in ("filter", "feature")) + " |")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dataset", default="../shared/datasets")
+    parser.add_argument("--cache", required=True, help="fit_confidence.py --cache folder (default preset)")
+    parser.add_argument("--no-lr-cache", default="", help="the same with --match-args=--no-lr-check")
+    parser.add_argument("--share", type=float, default=0.85, help="top share of matches by confidence")
+    args = parser.parse_args()
+    pairs = {}
+    for name in sorted(os.listdir(args.dataset)):
+        directory = os.path.join(args.dataset, name)
+        loaded = fc.load_pair(directory) if os.path.isdir(directory) else None
+        if loaded is None or not os.path.isfile(os.path.join(args.cache, name + ".json")):
+            continue
+        left, right, gt = loaded
+        pairs[name] = (directory, left, right, gt, int(math.ceil(np.nanmax(gt) / 16.0) * 16))
+    candidate_table(pairs, args.cache, args.share)
+    if args.no_lr_cache:
+        soft_check_table(pairs, args.cache, args.no_lr_cache)
+
+
+if __name__ == "__main__":
+    main()
