@@ -57,6 +57,8 @@ std::string ObjectPoseOptions::Check() const {
            "max_thin_piece_width_mm must be >= 0 (are "
         << min_outline_piece_fraction << ", " << min_facing_side_mm << ", "
         << max_thin_piece_width_mm << ")";
+  } else if (!(min_edge_strip_aspect >= 0.0)) {
+    out << "ObjectPoseOptions.min_edge_strip_aspect must be >= 0 (is " << min_edge_strip_aspect << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
   } else if (!(min_top_group_points >= 0 && top_group_link_mm >= 0.0 &&
@@ -525,10 +527,23 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
 
 namespace {
 
+// A piece at least min_edge_strip_aspect times as long as wide: a stretch of a face's edge.
+bool IsEdgeStrip(const std::vector<Eigen::Vector2d>& piece, const ObjectPoseOptions& options) {
+  const Rectangle2D rectangle = MinAreaRectangle(piece);
+  return rectangle.length > 0.0 && rectangle.length >= options.min_edge_strip_aspect * rectangle.width;
+}
+
 // The shape rules of the split-face join (the height and hidden-point rules come on top).
 bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<Eigen::Vector2d>& large,
                    double gap_mm, const ObjectPoseOptions& options) {
   if (!options.join_face_outlines) return gap_mm <= options.max_top_face_gap_mm;
+  // Two edge strips of one plain face face each other with full sides too; a strip is no part's
+  // face, and two that are a face's opposite ends and outline it together are that face.
+  if (options.min_edge_strip_aspect > 0.0 && IsEdgeStrip(small, options) &&
+      IsEdgeStrip(large, options) && PiecesAreOppositeEndsOfOneFace(small, large, options) &&
+      PiecesOutlineOneFace(small, large, options)) {
+    return true;
+  }
   // Two parts whose own edges face each other never join (seed 100: a flat 74 x 61 mm box and a
   // piece at its height 80 mm away outlined a 159 x 66 mm "face").
   if (PiecesFaceEachOtherWithEdges(small, large, options)) return false;

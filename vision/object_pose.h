@@ -82,6 +82,14 @@ struct ObjectPoseOptions {
   /// piece of it and still faces it (seed 11088: a 24 mm line 11 mm from a 44 x 31 mm box).
   double min_facing_side_mm = 5.0;
   double max_thin_piece_width_mm = 6.0;
+  /// Two edge strips - pieces at least this many times as long as wide - that are opposite ends
+  /// of one face (PiecesAreOppositeEndsOfOneFace) and outline it together (PiecesOutlineOneFace)
+  /// join even though they face each other with full sides: a plain top face under noise and
+  /// blur often shows only its two strong edges, and those face each other just as two parts'
+  /// own edges do. No part's top face is such a strip (render draws them at most 3:1; the
+  /// hard-profile seeds 6003, 6010, 6011 and 6016 lost their boxes to the facing-edge veto).
+  /// 0 disables it.
+  double min_edge_strip_aspect = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
   double max_end_yaw_difference_deg = 5.0;

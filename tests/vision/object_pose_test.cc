@@ -283,6 +283,48 @@ TEST(ObjectPose, SpecksAndLineEndsOutlineNoFaceAndFaceNoEdge) {
   EXPECT_FALSE(PiecesFaceEachOtherWithEdges(pointer, part, ends_never_edges));
 }
 
+// A plain top face under noise and blur often shows only its two strong edges: two strips, a
+// face's width apart, each facing the other with a full side as two parts' edges do (hard
+// profile, seeds 6003, 6010, 6011, 6016, 6017: boxes lost to the facing-edge veto). Strips at
+// least min_edge_strip_aspect times as long as wide are no part's face: they join; two whole
+// faces as close stay apart.
+TEST(ObjectPose, TwoEdgeStripsOfOnePlainFaceJoinTwoFacesDoNot) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> first, second;
+  // The two 42 mm edges (1 mm wide) of a 42 x 35 mm face at 26 mm height.
+  for (int k = 0; k < 120; ++k) {
+    const double y = (k % 2 == 0 ? 0.0 : 34.0) + uniform(random);
+    (k % 2 == 0 ? first : second).push_back(static_cast<int>(points.size()));
+    points.emplace_back(42.0 * uniform(random), y, 26.0 + 0.3 * (uniform(random) - 0.5));
+  }
+  std::vector<Eigen::Vector2d> first_xy, second_xy;
+  for (int i : first) first_xy.push_back(points[static_cast<std::size_t>(i)].head<2>());
+  for (int i : second) second_xy.push_back(points[static_cast<std::size_t>(i)].head<2>());
+  ASSERT_TRUE(PiecesFaceEachOtherWithEdges(first_xy, second_xy)) << "what vetoed them before";
+  ObjectPoseOptions before;
+  before.min_edge_strip_aspect = 0.0;
+  int merges = 0;
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, before, &merges).size(), 2u);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 1u);
+  EXPECT_EQ(merges, 1);
+  // Shifted along their length by half of it: no face's opposite ends.
+  for (int i : second) points[static_cast<std::size_t>(i)].x() += 21.0;
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
+  // Two whole 42 x 14 mm faces (outline and marks), 34 mm apart centre to centre: not strips.
+  points.clear();
+  first.clear();
+  second.clear();
+  for (int part = 0; part < 2; ++part) {
+    for (const auto& p : RectanglePoints({21.0, 34.0 * part}, 42, 14, 0, 200, 0.3, &random)) {
+      (part == 0 ? first : second).push_back(static_cast<int>(points.size()));
+      points.emplace_back(p.x(), p.y(), 26.0);
+    }
+  }
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
+}
+
 TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
   std::mt19937 random(kSeed);
   // Two long edges of a 75 x 60 mm face, 60 mm apart (yaw 30 degrees).
