@@ -57,6 +57,8 @@ std::string ObjectPoseOptions::Check() const {
            "max_thin_piece_width_mm must be >= 0 (are "
         << min_outline_piece_fraction << ", " << min_facing_side_mm << ", "
         << max_thin_piece_width_mm << ")";
+  } else if (!(hidden_margin_mm >= 0.0 && std::isfinite(hidden_margin_mm))) {
+    out << "ObjectPoseOptions.hidden_margin_mm must be >= 0 (is " << hidden_margin_mm << ")";
   } else if (!(min_edge_strip_aspect >= 0.0)) {
     out << "ObjectPoseOptions.min_edge_strip_aspect must be >= 0 (is " << min_edge_strip_aspect << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
@@ -346,9 +348,19 @@ bool OffTheJointTop(std::size_t i, const std::vector<Eigen::Vector3d>& points_in
   return std::abs(points_in_world[i].z() - height) > 2.0 * options.top_layer_mm;
 }
 
-// Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces and more
-// than 2 top layers below or above their height: a solid top face hides what is under it, and
-// nothing stands on it.
+// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
+double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
+  double distance = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < hull.size(); ++k) {
+    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
+  }
+  return distance;
+}
+
+// Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces, more
+// than hidden_margin_mm inside its outline, and more than 2 top layers below or above their
+// height: a solid top face hides what is under it, and nothing stands on it. Its own sides and
+// base edge lie under its outline: they are not hidden by it.
 int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_world,
                               const std::vector<int>& cluster_of_point, int a, int b,
                               const std::vector<Eigen::Vector2d>& hull, double height,
@@ -364,18 +376,12 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
     const Eigen::Vector3d& p = points_in_world[i];
     if (!OffTheJointTop(i, points_in_world, cluster_of_point, a, b, height, options, weak)) continue;
     if (p.x() < low.x() || p.y() < low.y() || p.x() > high.x() || p.y() > high.y()) continue;
-    if (InsideConvexPolygon(hull, p.head<2>())) ++count;
+    if (InsideConvexPolygon(hull, p.head<2>()) &&
+        DistanceToPolygonOutline(hull, p.head<2>()) > options.hidden_margin_mm) {
+      ++count;
+    }
   }
   return count;
-}
-
-// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
-double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
-  double distance = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < hull.size(); ++k) {
-    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
-  }
-  return distance;
 }
 
 // Points (not in clusters a or b, not weak) seen more than 2 top layers below or above the
@@ -511,6 +517,13 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   // A rectangular face: each piece lies along the joint rectangle's outline; two parts standing
   // apart put their inner sides deep inside it.
   const Rectangle2D rectangle = MinAreaRectangle(joint);
+  // Pieces in line outline a strip, no face: every piece lies on a thin rectangle's outline
+  // (seed 13124: a 35 mm line on a tall box's side and a piece of a cylinder's rim 162 mm
+  // away, at one height, made a 220 x 7.5 mm "face").
+  if (options.min_edge_strip_aspect > 0.0 &&
+      rectangle.length >= options.min_edge_strip_aspect * rectangle.width) {
+    return false;
+  }
   const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
   for (const auto* piece : {&first, &second}) {
     if (MinAreaRectangle(*piece).length < options.min_outline_piece_fraction * rectangle.width) {

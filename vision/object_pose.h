@@ -88,7 +88,9 @@ struct ObjectPoseOptions {
   /// blur often shows only its two strong edges, and those face each other just as two parts'
   /// own edges do. No part's top face is such a strip (render draws them at most 3:1; the
   /// hard-profile seeds 6003, 6010, 6011 and 6016 lost their boxes to the facing-edge veto).
-  /// 0 disables it.
+  /// Likewise a joint rectangle that is such a strip outlines no face (PiecesOutlineOneFace):
+  /// pieces in line lie on the outline of their thin joint rectangle (seed 13124: 220 x 7.5 mm).
+  /// 0 disables both.
   double min_edge_strip_aspect = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
@@ -104,6 +106,13 @@ struct ObjectPoseOptions {
   /// face's texture) are at most this fraction of their points: a gap between two parts shows
   /// the dusty table, dense with points.
   double max_hidden_fraction = 0.08;
+  /// ... counting no point within this distance (mm) of their joint outline: the part's own
+  /// sides and base edge lie under its top face's outline (seen there up to a few mm inside it
+  /// through the calibration), and are not hidden by the face. Hard profile, seed 6080: the
+  /// base edge of a 75 x 52 mm plain box, 80 mm tall, 1-3 mm inside its outline, gave 23 of
+  /// the 28 "hidden" points that kept its two halves apart (a false part, the pose 18 mm off).
+  /// 0 counts them all.
+  double hidden_margin_mm = 3.0;
   /// ... and when at most this many points are seen in the gap between the two pieces (inside
   /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
   /// height): a count, not a fraction, since the table seen between two parts 15 mm apart does
@@ -187,8 +196,9 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// whose top faces are at most options.max_top_face_gap_mm apart join when the convex hull of
 /// their joint top face is consistent with one solid face: it occludes everything under it and
 /// nothing stands on it, so no other point (not `weak`, when given) lies inside that hull more
-/// than 2 * top_layer_mm below or above it (up to options.max_hidden_fraction of their points:
-/// mismatches), and, when the larger one is round, the other lies
+/// than 2 * top_layer_mm below or above it and more than hidden_margin_mm inside its outline
+/// (up to options.max_hidden_fraction of their points: mismatches), and, when the larger one is
+/// round, the other lies
 /// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
 /// other parts in the gap between them.
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
@@ -204,7 +214,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
 /// min_outline_fraction of each piece's points lie within outline_band_fraction of the joint
 /// minimum-area rectangle's width from its outline (two parts standing apart put their inner
 /// sides deep inside the joint rectangle) and each piece is at least min_outline_piece_fraction
-/// of that width long (a speck lies on any outline).
+/// of that width long (a speck lies on any outline), unless the joint rectangle is a strip
+/// (min_edge_strip_aspect: pieces in line lie on any thin rectangle's outline).
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options = {});

@@ -325,6 +325,41 @@ TEST(ObjectPose, TwoEdgeStripsOfOnePlainFaceJoinTwoFacesDoNot) {
   EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 2u);
 }
 
+// Two pieces in line lie on the outline of their thin joint rectangle: a strip outlines no
+// face (seed 13124: a line on a tall box's side and a piece of a cylinder's rim 162 mm away made
+// a 220 x 7.5 mm "face"). A split face's base edge, seen just inside its outline, is not hidden
+// under it (hard profile, seed 6080: the base edge kept a plain box's two halves apart).
+TEST(ObjectPose, PiecesInLineOutlineNoFaceAndTheBaseEdgeIsNotHidden) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<Eigen::Vector2d> line, far_piece;
+  for (int k = 0; k < 32; ++k) line.emplace_back(35.0 * uniform(random), 0.6 * uniform(random));
+  for (int k = 0; k < 32; ++k) far_piece.emplace_back(195.0 + 25.0 * uniform(random), 4.5 + 3.0 * uniform(random));
+  ObjectPoseOptions before;
+  before.min_edge_strip_aspect = 0.0;
+  EXPECT_TRUE(PiecesOutlineOneFace(line, far_piece, before));
+  EXPECT_FALSE(PiecesOutlineOneFace(line, far_piece));
+  // The two halves of a 60 x 40 mm face at 80 mm, 10 mm apart, and its base edge at the table
+  // 1-2.5 mm inside the joint outline along both long sides.
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> first, second;
+  for (const auto& p : RectanglePoints({0, 0}, 60, 40, 0, 240, 0.3, &random)) {
+    if (std::abs(p.x()) < 5.0) continue;
+    (p.x() < 0.0 ? first : second).push_back(static_cast<int>(points.size()));
+    points.emplace_back(p.x(), p.y(), 80.0);
+  }
+  for (int k = 0; k < 30; ++k) {
+    points.emplace_back(-28.0 + 56.0 * uniform(random),
+                        (k % 2 ? 1.0 : -1.0) * (17.5 + 1.5 * uniform(random)), 0.5);
+  }
+  before = ObjectPoseOptions{};
+  before.hidden_margin_mm = 0.0;
+  int merges = 0;
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, before, &merges).size(), 2u);
+  EXPECT_EQ(MergeTopFaceIslands(points, {first, second}, {}, &merges).size(), 1u);
+  EXPECT_EQ(merges, 1);
+}
+
 TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
   std::mt19937 random(kSeed);
   // Two long edges of a 75 x 60 mm face, 60 mm apart (yaw 30 degrees).
