@@ -69,6 +69,12 @@ std::string ObjectPoseOptions::Check() const {
            "max_trim_yaw_change_deg must be >= 0 (are "
         << min_top_group_points << ", " << top_group_link_mm << ", " << max_trim_yaw_change_deg
         << ")";
+  } else if (!(min_top_level_difference_mm >= 0.0 && min_top_level_fraction >= 0.0 &&
+               min_top_level_fraction <= 0.5 && min_top_level_separation >= 0.0)) {
+    out << "ObjectPoseOptions: min_top_level_difference_mm and min_top_level_separation must be "
+           ">= 0 and min_top_level_fraction in [0, 0.5] (are "
+        << min_top_level_difference_mm << ", " << min_top_level_separation << ", "
+        << min_top_level_fraction << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -263,6 +269,7 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     }
   }
   pose.top_rectangle = MinAreaRectangle(top_xy);
+
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
                                                                      : pose.yaw_moments_deg;
@@ -646,6 +653,108 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
     }
   }
   if (merges != nullptr) *merges = merged;
+  return clusters;
+}
+
+std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>& points_in_world,
+                                             std::vector<std::vector<int>> clusters,
+                                             const ObjectPoseOptions& options, int* splits) {
+  int split = 0;
+  if (options.min_top_level_difference_mm > 0.0) {
+    std::vector<std::vector<int>> out;
+    for (auto& cluster : clusters) {
+      if (cluster.empty()) continue;
+      const ObjectPose pose = EstimateObjectPose(points_in_world, cluster, options);
+      std::vector<int> top;
+      for (int i : cluster) {
+        if (std::abs(points_in_world[static_cast<std::size_t>(i)].z() - pose.height_mm) <=
+            options.top_layer_mm) {
+          top.push_back(i);
+        }
+      }
+      // Otsu's threshold on the layer's heights: the split with the largest between-level
+      // variance.
+      std::vector<double> z;
+      for (int i : top) z.push_back(points_in_world[static_cast<std::size_t>(i)].z());
+      std::sort(z.begin(), z.end());
+      const std::size_t n = z.size();
+      const auto min_count = static_cast<std::size_t>(
+          std::ceil(options.min_top_level_fraction * static_cast<double>(n)));
+      double total = 0.0;
+      for (double v : z) total += v;
+      double best_score = -1.0, threshold = 0.0, difference = 0.0, below_sum = 0.0;
+      for (std::size_t k = 1; k < n; ++k) {
+        below_sum += z[k - 1];
+        if (k < std::max<std::size_t>(min_count, 1) || n - k < std::max<std::size_t>(min_count, 1)) continue;
+        const double low = below_sum / static_cast<double>(k);
+        const double high = (total - below_sum) / static_cast<double>(n - k);
+        const double score = static_cast<double>(k) * static_cast<double>(n - k) * (high - low) * (high - low);
+        if (score > best_score) {
+          best_score = score;
+          threshold = 0.5 * (z[k - 1] + z[k]);
+          difference = high - low;
+        }
+      }
+      if (best_score < 0.0 || difference < options.min_top_level_difference_mm) {
+        out.push_back(std::move(cluster));
+        continue;
+      }
+      // Each top point takes the level of most of its neighbours (itself included).
+      std::vector<int> level(top.size());
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        level[a] = points_in_world[static_cast<std::size_t>(top[a])].z() >= threshold ? 1 : 0;
+      }
+      const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+      std::vector<int> smoothed(top.size());
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        int votes[2] = {0, 0};
+        const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+        for (std::size_t b = 0; b < top.size(); ++b) {
+          if ((points_in_world[static_cast<std::size_t>(top[b])].head<2>() - xy).squaredNorm() <= link_squared) {
+            ++votes[level[b]];
+          }
+        }
+        smoothed[a] = votes[1] > votes[0] ? 1 : votes[1] < votes[0] ? 0 : level[a];
+      }
+      Eigen::Vector2d centre[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+      std::size_t count[2] = {0, 0};
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        centre[smoothed[a]] += points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+        ++count[smoothed[a]];
+      }
+      if (count[0] < std::max<std::size_t>(min_count, 1) || count[1] < std::max<std::size_t>(min_count, 1) ||
+          (centre[0] / static_cast<double>(count[0]) - centre[1] / static_cast<double>(count[1])).norm() <
+              options.min_top_level_separation * pose.top_rectangle.length) {
+        out.push_back(std::move(cluster));
+        continue;
+      }
+      // The other points (sides, the lower face's rim below the layer) go with their nearest top
+      // point.
+      std::vector<int> parts[2];
+      std::vector<int> level_of(points_in_world.size(), -1);
+      for (std::size_t a = 0; a < top.size(); ++a) level_of[static_cast<std::size_t>(top[a])] = smoothed[a];
+      for (int i : cluster) {
+        int chosen = level_of[static_cast<std::size_t>(i)];
+        if (chosen < 0) {
+          double nearest = std::numeric_limits<double>::infinity();
+          const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(i)].head<2>();
+          for (std::size_t a = 0; a < top.size(); ++a) {
+            const double d = (points_in_world[static_cast<std::size_t>(top[a])].head<2>() - xy).squaredNorm();
+            if (d < nearest) {
+              nearest = d;
+              chosen = smoothed[a];
+            }
+          }
+        }
+        parts[chosen].push_back(i);
+      }
+      out.push_back(std::move(parts[0]));
+      out.push_back(std::move(parts[1]));
+      ++split;
+    }
+    clusters = std::move(out);
+  }
+  if (splits != nullptr) *splits = split;
   return clusters;
 }
 

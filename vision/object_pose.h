@@ -122,6 +122,19 @@ struct ObjectPoseOptions {
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
   double gap_margin_mm = 3.0;
+  /// SplitTopLevels: a cluster whose top layer holds two heights is two touching parts the
+  /// clustering joined (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall reported as one
+  /// part at 68.6 mm between them, 32 mm from either). The layer's heights split in two (Otsu)
+  /// whose means differ by at least this (mm); one face's points agree to about a millimetre
+  /// (height p99 0.6 mm). 0 disables the split.
+  double min_top_level_difference_mm = 3.0;
+  /// ... each level holding at least this fraction of the layer's points (a part's upper sides
+  /// in the layer are a few) ...
+  double min_top_level_fraction = 0.2;
+  /// ... and the two levels' centres (table plane) at least this fraction of the top face's
+  /// longest side apart: noise on one face puts its high and low points all over it, two parts
+  /// put them side by side.
+  double min_top_level_separation = 0.3;
   std::string Check() const;
 };
 
@@ -206,6 +219,17 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
                                                   const std::vector<bool>* weak = nullptr);
+
+/// Splits each cluster whose top layer holds two heights side by side (touching parts of unequal
+/// height that the clustering joined; see ObjectPoseOptions::min_top_level_difference_mm) into
+/// two: its top points by level (each point then taking the level of most of its neighbours
+/// within top_group_link_mm, so the noise tails of one level follow their face), its other
+/// points to the level of their nearest top point in the table plane. `splits` (optional) gets
+/// the number of splits.
+std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>& points_in_world,
+                                             std::vector<std::vector<int>> clusters,
+                                             const ObjectPoseOptions& options = {},
+                                             int* splits = nullptr);
 
 /// Whether two same-height pieces of top-face points (table plane, mm) are together the outline
 /// of one face: a plain top face shows only its outline, and its edges along the epipolar lines

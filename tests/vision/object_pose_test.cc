@@ -360,6 +360,52 @@ TEST(ObjectPose, PiecesInLineOutlineNoFaceAndTheBaseEdgeIsNotHidden) {
   EXPECT_EQ(merges, 1);
 }
 
+// Touching parts of unequal height joined by the clustering: both tops in one top layer, the
+// pose between them (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall). The layer's
+// two heights side by side split it; one face's height noise, or a slight tilt, does not.
+TEST(ObjectPose, SplitTopLevelsSeparatesTouchingPartsOfUnequalHeight) {
+  std::mt19937 random(kSeed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.8);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> cluster;
+  const auto disc = [&](const Eigen::Vector2d& centre, double radius, double height, int count) {
+    for (int k = 0; k < count; ++k) {
+      const double angle = 2.0 * std::numbers::pi * uniform(random);
+      const double r = radius * std::sqrt(uniform(random));
+      cluster.push_back(static_cast<int>(points.size()));
+      points.emplace_back(centre.x() + r * std::cos(angle), centre.y() + r * std::sin(angle),
+                          height + noise(random));
+    }
+  };
+  disc({0, 0}, 37, 71.0, 320);
+  disc({68.5, 0}, 31.5, 66.0, 320);
+  int splits = 0;
+  const auto split = SplitTopLevels(points, {cluster}, {}, &splits);
+  ASSERT_EQ(split.size(), 2u);
+  EXPECT_EQ(splits, 1);
+  for (const auto& part : split) {
+    const ObjectPose pose = EstimateObjectPose(points, part);
+    const bool tall = pose.height_mm > 68.5;
+    EXPECT_NEAR(pose.height_mm, tall ? 71.0 : 66.0, 0.5);
+    EXPECT_LT((pose.centroid.head<2>() - (tall ? Eigen::Vector2d(0, 0) : Eigen::Vector2d(68.5, 0))).norm(), 3.0);
+  }
+  ObjectPoseOptions before;
+  before.min_top_level_difference_mm = 0.0;
+  EXPECT_EQ(SplitTopLevels(points, {cluster}, before).size(), 1u);
+  // One 70 x 50 mm face with 2 mm height noise, tilted by 2 mm along its length: one part.
+  points.clear();
+  cluster.clear();
+  std::normal_distribution<double> face_noise(0.0, 2.0);
+  for (int k = 0; k < 500; ++k) {
+    const double x = 70.0 * (uniform(random) - 0.5), y = 50.0 * (uniform(random) - 0.5);
+    cluster.push_back(static_cast<int>(points.size()));
+    points.emplace_back(x, y, 40.0 + 2.0 * x / 70.0 + face_noise(random));
+  }
+  EXPECT_EQ(SplitTopLevels(points, {cluster}, {}, &splits).size(), 1u);
+  EXPECT_EQ(splits, 0);
+}
+
 TEST(ObjectPose, PiecesOutlineOneFaceJoinsEdgesOfOnePlainFaceNotTwoParts) {
   std::mt19937 random(kSeed);
   // Two long edges of a 75 x 60 mm face, 60 mm apart (yaw 30 degrees).
