@@ -69,6 +69,9 @@ std::string ObjectPoseOptions::Check() const {
            "max_trim_yaw_change_deg must be >= 0 (are "
         << min_top_group_points << ", " << top_group_link_mm << ", " << max_trim_yaw_change_deg
         << ")";
+  } else if (!(min_top_group_fraction >= 0.0 && min_top_group_fraction <= 1.0)) {
+    out << "ObjectPoseOptions.min_top_group_fraction must be in [0, 1] (is " << min_top_group_fraction
+        << ")";
   } else if (!(min_top_level_difference_mm >= 0.0 && min_top_level_fraction >= 0.0 &&
                min_top_level_fraction <= 0.5 && min_top_level_separation >= 0.0)) {
     out << "ObjectPoseOptions: min_top_level_difference_mm and min_top_level_separation must be "
@@ -254,9 +257,12 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     }
     std::vector<int> group_size(top_xy.size(), 0);
     for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
+    const int largest = group_size.empty() ? 0 : *std::max_element(group_size.begin(), group_size.end());
+    const int min_group = std::max(options.min_top_group_points,
+                                   static_cast<int>(std::ceil(options.min_top_group_fraction * largest)));
     std::vector<Eigen::Vector2d> kept;
     for (std::size_t a = 0; a < top_xy.size(); ++a) {
-      if (group_size[root(a)] >= options.min_top_group_points) kept.push_back(top_xy[a]);
+      if (group_size[root(a)] >= min_group) kept.push_back(top_xy[a]);
     }
     // Mismatches beyond an edge stretch the rectangle across it; where leaving them out turns
     // the rectangle instead (a small, nearly square top whose corners are the small groups,

@@ -39,6 +39,12 @@ struct ObjectPoseOptions {
   /// is one dense chain, its marks blobs inside it. 0 or 1 keeps every point.
   int min_top_group_points = 4;
   double top_group_link_mm = 5.0;
+  /// ... or of fewer than this fraction of the largest group's points: a chain of points at the
+  /// top height beyond the face (an edge of a neighbour's side at that height, seed 17136: 25
+  /// points up to 29 mm past a 64 x 46 mm box's end, its centre 13 mm off) is no piece of a face
+  /// whose outline is one chain of 300; a split face's pieces are of one size. 0 keeps them
+  /// (as does min_top_group_points 0 or 1).
+  double min_top_group_fraction = 0.1;
   /// ... unless leaving them out turns the rectangle by more than this (degrees): mismatches
   /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
   /// turned 73 degrees).

@@ -126,6 +126,25 @@ TEST(ObjectPose, ALoneTopPointDoesNotStretchTheRectangle) {
   EXPECT_GT(stretched.top_rectangle.width, 55.0);
 }
 
+// A chain of points at the top height past a face's end (seed 17136: 25 points, a neighbour's
+// edge) is a group too large for min_top_group_points but under a tenth of the face's outline.
+TEST(ObjectPose, ASmallChainBeyondTheFaceDoesNotStretchTheRectangle) {
+  std::mt19937 random(kSeed);
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& xy : RectanglePoints({80, 460}, 64, 46, 0.0, 300, 0.3, &random)) {
+    points.emplace_back(xy.x(), xy.y(), 38.0);
+  }
+  for (int k = 0; k < 25; ++k) points.emplace_back(80.0 + 46.0 + 0.6 * k, 460.0 - 17.0 + 1.4 * k, 37.5);
+  std::vector<int> indices(points.size());
+  for (std::size_t i = 0; i < indices.size(); ++i) indices[i] = static_cast<int>(i);
+  const ObjectPose pose = EstimateObjectPose(points, indices);
+  EXPECT_NEAR(pose.top_rectangle.length, 64.0, 1.5);
+  EXPECT_LT((pose.centroid.head<2>() - Eigen::Vector2d(80, 460)).norm(), 1.0);
+  ObjectPoseOptions before;
+  before.min_top_group_fraction = 0.0;
+  EXPECT_GT(EstimateObjectPose(points, indices, before).top_rectangle.length, 75.0);
+}
+
 TEST(ObjectPose, PosesAreTallestFirst) {
   std::vector<Eigen::Vector3d> points = {{0, 0, 10}, {1, 0, 10}, {0, 1, 10},
                                          {50, 0, 90}, {51, 0, 90}, {50, 1, 90},
