@@ -57,6 +57,10 @@ std::string ObjectPoseOptions::Check() const {
            "max_thin_piece_width_mm must be >= 0 (are "
         << min_outline_piece_fraction << ", " << min_facing_side_mm << ", "
         << max_thin_piece_width_mm << ")";
+  } else if (!(hidden_margin_mm >= 0.0 && std::isfinite(hidden_margin_mm))) {
+    out << "ObjectPoseOptions.hidden_margin_mm must be >= 0 (is " << hidden_margin_mm << ")";
+  } else if (!(min_edge_strip_aspect >= 0.0)) {
+    out << "ObjectPoseOptions.min_edge_strip_aspect must be >= 0 (is " << min_edge_strip_aspect << ")";
   } else if (!(max_top_face_gap_mm >= 0.0)) {
     out << "ObjectPoseOptions.max_top_face_gap_mm must be >= 0 (is " << max_top_face_gap_mm << ")";
   } else if (!(min_top_group_points >= 0 && top_group_link_mm >= 0.0 &&
@@ -65,6 +69,15 @@ std::string ObjectPoseOptions::Check() const {
            "max_trim_yaw_change_deg must be >= 0 (are "
         << min_top_group_points << ", " << top_group_link_mm << ", " << max_trim_yaw_change_deg
         << ")";
+  } else if (!(min_top_group_fraction >= 0.0 && min_top_group_fraction <= 1.0)) {
+    out << "ObjectPoseOptions.min_top_group_fraction must be in [0, 1] (is " << min_top_group_fraction
+        << ")";
+  } else if (!(min_top_level_difference_mm >= 0.0 && min_top_level_fraction >= 0.0 &&
+               min_top_level_fraction <= 0.5 && min_top_level_separation >= 0.0)) {
+    out << "ObjectPoseOptions: min_top_level_difference_mm and min_top_level_separation must be "
+           ">= 0 and min_top_level_fraction in [0, 0.5] (are "
+        << min_top_level_difference_mm << ", " << min_top_level_separation << ", "
+        << min_top_level_fraction << ")";
   } else if (!(densest_slab_factor > 0.0)) {
     out << "ObjectPoseOptions.densest_slab_factor must be positive (is " << densest_slab_factor
         << ")";
@@ -244,9 +257,12 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     }
     std::vector<int> group_size(top_xy.size(), 0);
     for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
+    const int largest = group_size.empty() ? 0 : *std::max_element(group_size.begin(), group_size.end());
+    const int min_group = std::max(options.min_top_group_points,
+                                   static_cast<int>(std::ceil(options.min_top_group_fraction * largest)));
     std::vector<Eigen::Vector2d> kept;
     for (std::size_t a = 0; a < top_xy.size(); ++a) {
-      if (group_size[root(a)] >= options.min_top_group_points) kept.push_back(top_xy[a]);
+      if (group_size[root(a)] >= min_group) kept.push_back(top_xy[a]);
     }
     // Mismatches beyond an edge stretch the rectangle across it; where leaving them out turns
     // the rectangle instead (a small, nearly square top whose corners are the small groups,
@@ -259,6 +275,7 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     }
   }
   pose.top_rectangle = MinAreaRectangle(top_xy);
+
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
   pose.yaw_deg = options.yaw_method == YawMethod::kMinAreaRectangle ? pose.top_rectangle.yaw_deg
                                                                      : pose.yaw_moments_deg;
@@ -344,9 +361,19 @@ bool OffTheJointTop(std::size_t i, const std::vector<Eigen::Vector3d>& points_in
   return std::abs(points_in_world[i].z() - height) > 2.0 * options.top_layer_mm;
 }
 
-// Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces and more
-// than 2 top layers below or above their height: a solid top face hides what is under it, and
-// nothing stands on it.
+// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
+double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
+  double distance = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < hull.size(); ++k) {
+    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
+  }
+  return distance;
+}
+
+// Points (not in clusters a or b, not weak) inside the hull of a's and b's top faces, more
+// than hidden_margin_mm inside its outline, and more than 2 top layers below or above their
+// height: a solid top face hides what is under it, and nothing stands on it. Its own sides and
+// base edge lie under its outline: they are not hidden by it.
 int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_world,
                               const std::vector<int>& cluster_of_point, int a, int b,
                               const std::vector<Eigen::Vector2d>& hull, double height,
@@ -362,18 +389,12 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
     const Eigen::Vector3d& p = points_in_world[i];
     if (!OffTheJointTop(i, points_in_world, cluster_of_point, a, b, height, options, weak)) continue;
     if (p.x() < low.x() || p.y() < low.y() || p.x() > high.x() || p.y() > high.y()) continue;
-    if (InsideConvexPolygon(hull, p.head<2>())) ++count;
+    if (InsideConvexPolygon(hull, p.head<2>()) &&
+        DistanceToPolygonOutline(hull, p.head<2>()) > options.hidden_margin_mm) {
+      ++count;
+    }
   }
   return count;
-}
-
-// Distance from `point` to the outline of the convex polygon `hull` (inside or outside).
-double DistanceToPolygonOutline(const std::vector<Eigen::Vector2d>& hull, const Eigen::Vector2d& point) {
-  double distance = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < hull.size(); ++k) {
-    distance = std::min(distance, SegmentDistance(point, hull[k], hull[(k + 1) % hull.size()]));
-  }
-  return distance;
 }
 
 // Points (not in clusters a or b, not weak) seen more than 2 top layers below or above the
@@ -509,6 +530,13 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   // A rectangular face: each piece lies along the joint rectangle's outline; two parts standing
   // apart put their inner sides deep inside it.
   const Rectangle2D rectangle = MinAreaRectangle(joint);
+  // Pieces in line outline a strip, no face: every piece lies on a thin rectangle's outline
+  // (seed 13124: a 35 mm line on a tall box's side and a piece of a cylinder's rim 162 mm
+  // away, at one height, made a 220 x 7.5 mm "face").
+  if (options.min_edge_strip_aspect > 0.0 &&
+      rectangle.length >= options.min_edge_strip_aspect * rectangle.width) {
+    return false;
+  }
   const double band = std::max(options.top_layer_mm, options.outline_band_fraction * rectangle.width);
   for (const auto* piece : {&first, &second}) {
     if (MinAreaRectangle(*piece).length < options.min_outline_piece_fraction * rectangle.width) {
@@ -525,10 +553,23 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
 
 namespace {
 
+// A piece at least min_edge_strip_aspect times as long as wide: a stretch of a face's edge.
+bool IsEdgeStrip(const std::vector<Eigen::Vector2d>& piece, const ObjectPoseOptions& options) {
+  const Rectangle2D rectangle = MinAreaRectangle(piece);
+  return rectangle.length > 0.0 && rectangle.length >= options.min_edge_strip_aspect * rectangle.width;
+}
+
 // The shape rules of the split-face join (the height and hidden-point rules come on top).
 bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<Eigen::Vector2d>& large,
                    double gap_mm, const ObjectPoseOptions& options) {
   if (!options.join_face_outlines) return gap_mm <= options.max_top_face_gap_mm;
+  // Two edge strips of one plain face face each other with full sides too; a strip is no part's
+  // face, and two that are a face's opposite ends and outline it together are that face.
+  if (options.min_edge_strip_aspect > 0.0 && IsEdgeStrip(small, options) &&
+      IsEdgeStrip(large, options) && PiecesAreOppositeEndsOfOneFace(small, large, options) &&
+      PiecesOutlineOneFace(small, large, options)) {
+    return true;
+  }
   // Two parts whose own edges face each other never join (seed 100: a flat 74 x 61 mm box and a
   // piece at its height 80 mm away outlined a 159 x 66 mm "face").
   if (PiecesFaceEachOtherWithEdges(small, large, options)) return false;
@@ -618,6 +659,108 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
     }
   }
   if (merges != nullptr) *merges = merged;
+  return clusters;
+}
+
+std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>& points_in_world,
+                                             std::vector<std::vector<int>> clusters,
+                                             const ObjectPoseOptions& options, int* splits) {
+  int split = 0;
+  if (options.min_top_level_difference_mm > 0.0) {
+    std::vector<std::vector<int>> out;
+    for (auto& cluster : clusters) {
+      if (cluster.empty()) continue;
+      const ObjectPose pose = EstimateObjectPose(points_in_world, cluster, options);
+      std::vector<int> top;
+      for (int i : cluster) {
+        if (std::abs(points_in_world[static_cast<std::size_t>(i)].z() - pose.height_mm) <=
+            options.top_layer_mm) {
+          top.push_back(i);
+        }
+      }
+      // Otsu's threshold on the layer's heights: the split with the largest between-level
+      // variance.
+      std::vector<double> z;
+      for (int i : top) z.push_back(points_in_world[static_cast<std::size_t>(i)].z());
+      std::sort(z.begin(), z.end());
+      const std::size_t n = z.size();
+      const auto min_count = static_cast<std::size_t>(
+          std::ceil(options.min_top_level_fraction * static_cast<double>(n)));
+      double total = 0.0;
+      for (double v : z) total += v;
+      double best_score = -1.0, threshold = 0.0, difference = 0.0, below_sum = 0.0;
+      for (std::size_t k = 1; k < n; ++k) {
+        below_sum += z[k - 1];
+        if (k < std::max<std::size_t>(min_count, 1) || n - k < std::max<std::size_t>(min_count, 1)) continue;
+        const double low = below_sum / static_cast<double>(k);
+        const double high = (total - below_sum) / static_cast<double>(n - k);
+        const double score = static_cast<double>(k) * static_cast<double>(n - k) * (high - low) * (high - low);
+        if (score > best_score) {
+          best_score = score;
+          threshold = 0.5 * (z[k - 1] + z[k]);
+          difference = high - low;
+        }
+      }
+      if (best_score < 0.0 || difference < options.min_top_level_difference_mm) {
+        out.push_back(std::move(cluster));
+        continue;
+      }
+      // Each top point takes the level of most of its neighbours (itself included).
+      std::vector<int> level(top.size());
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        level[a] = points_in_world[static_cast<std::size_t>(top[a])].z() >= threshold ? 1 : 0;
+      }
+      const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+      std::vector<int> smoothed(top.size());
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        int votes[2] = {0, 0};
+        const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+        for (std::size_t b = 0; b < top.size(); ++b) {
+          if ((points_in_world[static_cast<std::size_t>(top[b])].head<2>() - xy).squaredNorm() <= link_squared) {
+            ++votes[level[b]];
+          }
+        }
+        smoothed[a] = votes[1] > votes[0] ? 1 : votes[1] < votes[0] ? 0 : level[a];
+      }
+      Eigen::Vector2d centre[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+      std::size_t count[2] = {0, 0};
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        centre[smoothed[a]] += points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+        ++count[smoothed[a]];
+      }
+      if (count[0] < std::max<std::size_t>(min_count, 1) || count[1] < std::max<std::size_t>(min_count, 1) ||
+          (centre[0] / static_cast<double>(count[0]) - centre[1] / static_cast<double>(count[1])).norm() <
+              options.min_top_level_separation * pose.top_rectangle.length) {
+        out.push_back(std::move(cluster));
+        continue;
+      }
+      // The other points (sides, the lower face's rim below the layer) go with their nearest top
+      // point.
+      std::vector<int> parts[2];
+      std::vector<int> level_of(points_in_world.size(), -1);
+      for (std::size_t a = 0; a < top.size(); ++a) level_of[static_cast<std::size_t>(top[a])] = smoothed[a];
+      for (int i : cluster) {
+        int chosen = level_of[static_cast<std::size_t>(i)];
+        if (chosen < 0) {
+          double nearest = std::numeric_limits<double>::infinity();
+          const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(i)].head<2>();
+          for (std::size_t a = 0; a < top.size(); ++a) {
+            const double d = (points_in_world[static_cast<std::size_t>(top[a])].head<2>() - xy).squaredNorm();
+            if (d < nearest) {
+              nearest = d;
+              chosen = smoothed[a];
+            }
+          }
+        }
+        parts[chosen].push_back(i);
+      }
+      out.push_back(std::move(parts[0]));
+      out.push_back(std::move(parts[1]));
+      ++split;
+    }
+    clusters = std::move(out);
+  }
+  if (splits != nullptr) *splits = split;
   return clusters;
 }
 

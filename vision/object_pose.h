@@ -39,6 +39,12 @@ struct ObjectPoseOptions {
   /// is one dense chain, its marks blobs inside it. 0 or 1 keeps every point.
   int min_top_group_points = 4;
   double top_group_link_mm = 5.0;
+  /// ... or of fewer than this fraction of the largest group's points: a chain of points at the
+  /// top height beyond the face (an edge of a neighbour's side at that height, seed 17136: 25
+  /// points up to 29 mm past a 64 x 46 mm box's end, its centre 13 mm off) is no piece of a face
+  /// whose outline is one chain of 300; a split face's pieces are of one size. 0 keeps them
+  /// (as does min_top_group_points 0 or 1).
+  double min_top_group_fraction = 0.1;
   /// ... unless leaving them out turns the rectangle by more than this (degrees): mismatches
   /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
   /// turned 73 degrees).
@@ -82,6 +88,16 @@ struct ObjectPoseOptions {
   /// piece of it and still faces it (seed 11088: a 24 mm line 11 mm from a 44 x 31 mm box).
   double min_facing_side_mm = 5.0;
   double max_thin_piece_width_mm = 6.0;
+  /// Two edge strips - pieces at least this many times as long as wide - that are opposite ends
+  /// of one face (PiecesAreOppositeEndsOfOneFace) and outline it together (PiecesOutlineOneFace)
+  /// join even though they face each other with full sides: a plain top face under noise and
+  /// blur often shows only its two strong edges, and those face each other just as two parts'
+  /// own edges do. No part's top face is such a strip (render draws them at most 3:1; the
+  /// hard-profile seeds 6003, 6010, 6011 and 6016 lost their boxes to the facing-edge veto).
+  /// Likewise a joint rectangle that is such a strip outlines no face (PiecesOutlineOneFace):
+  /// pieces in line lie on the outline of their thin joint rectangle (seed 13124: 220 x 7.5 mm).
+  /// 0 disables both.
+  double min_edge_strip_aspect = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
   double max_end_yaw_difference_deg = 5.0;
@@ -96,6 +112,13 @@ struct ObjectPoseOptions {
   /// face's texture) are at most this fraction of their points: a gap between two parts shows
   /// the dusty table, dense with points.
   double max_hidden_fraction = 0.08;
+  /// ... counting no point within this distance (mm) of their joint outline: the part's own
+  /// sides and base edge lie under its top face's outline (seen there up to a few mm inside it
+  /// through the calibration), and are not hidden by the face. Hard profile, seed 6080: the
+  /// base edge of a 75 x 52 mm plain box, 80 mm tall, 1-3 mm inside its outline, gave 23 of
+  /// the 28 "hidden" points that kept its two halves apart (a false part, the pose 18 mm off).
+  /// 0 counts them all.
+  double hidden_margin_mm = 3.0;
   /// ... and when at most this many points are seen in the gap between the two pieces (inside
   /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
   /// height): a count, not a fraction, since the table seen between two parts 15 mm apart does
@@ -105,6 +128,19 @@ struct ObjectPoseOptions {
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
   double gap_margin_mm = 3.0;
+  /// SplitTopLevels: a cluster whose top layer holds two heights is two touching parts the
+  /// clustering joined (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall reported as one
+  /// part at 68.6 mm between them, 32 mm from either). The layer's heights split in two (Otsu)
+  /// whose means differ by at least this (mm); one face's points agree to about a millimetre
+  /// (height p99 0.6 mm). 0 disables the split.
+  double min_top_level_difference_mm = 3.0;
+  /// ... each level holding at least this fraction of the layer's points (a part's upper sides
+  /// in the layer are a few) ...
+  double min_top_level_fraction = 0.2;
+  /// ... and the two levels' centres (table plane) at least this fraction of the top face's
+  /// longest side apart: noise on one face puts its high and low points all over it, two parts
+  /// put them side by side.
+  double min_top_level_separation = 0.3;
   std::string Check() const;
 };
 
@@ -179,8 +215,9 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// whose top faces are at most options.max_top_face_gap_mm apart join when the convex hull of
 /// their joint top face is consistent with one solid face: it occludes everything under it and
 /// nothing stands on it, so no other point (not `weak`, when given) lies inside that hull more
-/// than 2 * top_layer_mm below or above it (up to options.max_hidden_fraction of their points:
-/// mismatches), and, when the larger one is round, the other lies
+/// than 2 * top_layer_mm below or above it and more than hidden_margin_mm inside its outline
+/// (up to options.max_hidden_fraction of their points: mismatches), and, when the larger one is
+/// round, the other lies
 /// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
 /// other parts in the gap between them.
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
@@ -189,6 +226,17 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                                                   int* merges = nullptr,
                                                   const std::vector<bool>* weak = nullptr);
 
+/// Splits each cluster whose top layer holds two heights side by side (touching parts of unequal
+/// height that the clustering joined; see ObjectPoseOptions::min_top_level_difference_mm) into
+/// two: its top points by level (each point then taking the level of most of its neighbours
+/// within top_group_link_mm, so the noise tails of one level follow their face), its other
+/// points to the level of their nearest top point in the table plane. `splits` (optional) gets
+/// the number of splits.
+std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>& points_in_world,
+                                             std::vector<std::vector<int>> clusters,
+                                             const ObjectPoseOptions& options = {},
+                                             int* splits = nullptr);
+
 /// Whether two same-height pieces of top-face points (table plane, mm) are together the outline
 /// of one face: a plain top face shows only its outline, and its edges along the epipolar lines
 /// are weak, so it falls apart into parallel edges a face's width apart. True when the joint
@@ -196,7 +244,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
 /// min_outline_fraction of each piece's points lie within outline_band_fraction of the joint
 /// minimum-area rectangle's width from its outline (two parts standing apart put their inner
 /// sides deep inside the joint rectangle) and each piece is at least min_outline_piece_fraction
-/// of that width long (a speck lies on any outline).
+/// of that width long (a speck lies on any outline), unless the joint rectangle is a strip
+/// (min_edge_strip_aspect: pieces in line lie on any thin rectangle's outline).
 bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
                           const std::vector<Eigen::Vector2d>& second,
                           const ObjectPoseOptions& options = {});

@@ -53,6 +53,7 @@ std::string PositionSensingOptions::Check() const {
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
   if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
+  if (!(min_round_top_fill >= 0.0 && min_round_top_fill <= 1.0)) return "min_round_top_fill must be in [0, 1]";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -154,10 +155,15 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       cluster = std::move(strong);
     }
   }
-  if (options.clustering == ClusteringMethod::kGrid && options.merge_top_face_islands) {
-    report.clustering.clusters = MergeTopFaceIslands(
-        report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
-        &report.weak);
+  if (options.clustering == ClusteringMethod::kGrid) {
+    if (options.merge_top_face_islands) {
+      report.clustering.clusters = MergeTopFaceIslands(
+          report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
+          &report.weak);
+    }
+    // Touching parts of unequal height the grid joined (never a pose between them).
+    report.clustering.clusters = SplitTopLevels(report.points_in_world, report.clustering.clusters,
+                                                pose_options, &report.top_level_splits);
     std::fill(report.clustering.labels.begin(), report.clustering.labels.end(), -1);
     for (std::size_t c = 0; c < report.clustering.clusters.size(); ++c) {
       for (int i : report.clustering.clusters[c]) {
@@ -187,7 +193,8 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
   for (ObjectPose& pose : report.objects) {
     // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
-    pose.merged = !pose.round && pose.top_fill < options.min_top_fill && pose.top_roundness > 0.06;
+    pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
+                  (pose.top_roundness > 0.06 || pose.top_fill < options.min_round_top_fill);
     if (pose.merged) ++report.merged;
   }
   report.timing_ms.pose = MillisecondsSince(start);
@@ -260,6 +267,7 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {{"outside_height_window", report.clustering.n_outside_height_window},
             {"in_small_clusters", report.clustering.n_in_small_clusters},
             {"island_merges", report.island_merges},
+            {"top_level_splits", report.top_level_splits},
             {"without_top_face", report.without_top_face},
             {"narrow_top_face", report.narrow_top_face},
             {"merged", report.merged}}},

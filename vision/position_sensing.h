@@ -66,6 +66,11 @@ struct PositionSensingOptions {
   /// of its radius (ObjectPose::top_roundness: a disc fills only pi / 4 of its square) are never
   /// flagged. 0 flags none.
   double min_top_fill = 0.8;
+  /// ... unless they fill less than this fraction of their rectangle: any piece of a disc (a
+  /// circular segment) fills at least 2/3 of its rectangle, while a few hull vertices of a
+  /// partial outline fit some circle by chance (`--min-gap 0`, seed 9029: a 72 x 27 mm piece
+  /// of a box's outline, fill 0.52, roundness 0.023, its pose 4.9 mm off and unflagged).
+  double min_round_top_fill = 0.6;
   std::string Check() const;
 };
 
@@ -92,6 +97,7 @@ struct PositionSensingReport {
   TriangulationCounts triangulation;
   ClusteringReport clustering;                   ///< labels index points_in_world
   int island_merges = 0;                         ///< top-face islands joined to their part
+  int top_level_splits = 0;                      ///< clusters split by SplitTopLevels
   int without_top_face = 0;                      ///< clusters dropped by min_top_fraction
   int narrow_top_face = 0;                       ///< clusters dropped by min_top_width_mm
   int merged = 0;                                ///< parts flagged merged (min_top_fill)

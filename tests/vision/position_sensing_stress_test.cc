@@ -16,6 +16,12 @@
 //   HNNSTEREO_STRESS_OLD_MERGE=1     without the outline join (the rule before issue 12)
 //   HNNSTEREO_STRESS_NO_GAP_GUARD=1  without the gap-point guard on the island merge
 //                                    (ObjectPoseOptions::max_gap_points unlimited, for comparison)
+//   HNNSTEREO_STRESS_NO_EDGE_STRIPS=1 without the edge-strip join (ObjectPoseOptions::
+//                                    min_edge_strip_aspect 0, for comparison)
+//   HNNSTEREO_STRESS_NO_HIDDEN_MARGIN=1 the hidden-point rule counting points up to its outline
+//                                    (ObjectPoseOptions::hidden_margin_mm 0, for comparison)
+//   HNNSTEREO_STRESS_NO_LEVEL_SPLIT=1  without SplitTopLevels (ObjectPoseOptions::
+//                                    min_top_level_difference_mm 0, for comparison)
 //   HNNSTEREO_STRESS_STOP=decisions  the decisions stop rule (hnn-default's) instead of the energy rule
 // Without HNNSTEREO_STRESS=1 the test is skipped.
 #include <gtest/gtest.h>
@@ -167,6 +173,9 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   }
   sensing.matcher.engine = hnn::EngineKind::kCpu;
   if (Env("HNNSTEREO_STRESS_OLD_MERGE", "0") == "1") sensing.pose.join_face_outlines = false;
+  if (Env("HNNSTEREO_STRESS_NO_EDGE_STRIPS", "0") == "1") sensing.pose.min_edge_strip_aspect = 0.0;
+  if (Env("HNNSTEREO_STRESS_NO_HIDDEN_MARGIN", "0") == "1") sensing.pose.hidden_margin_mm = 0.0;
+  if (Env("HNNSTEREO_STRESS_NO_LEVEL_SPLIT", "0") == "1") sensing.pose.min_top_level_difference_mm = 0.0;
   if (Env("HNNSTEREO_STRESS_NO_GAP_GUARD", "0") == "1") {
     sensing.pose.max_gap_points = std::numeric_limits<int>::max();
   }
