@@ -42,6 +42,13 @@ std::string ObjectPoseOptions::Check() const {
   } else if (!(max_circle_residual >= 0.0 && max_circle_residual < 1.0)) {
     out << "ObjectPoseOptions.max_circle_residual must be in [0, 1) (is " << max_circle_residual
         << ")";
+  } else if (!(min_circle_inlier_fraction >= 0.0 && min_circle_inlier_fraction <= 1.0 &&
+               circle_band_fraction >= 0.0 && circle_band_min_mm >= 0.0 &&
+               min_rim_coverage >= 0.0 && min_rim_coverage <= 1.0 &&
+               max_outside_circle_fraction >= 0.0 && max_outside_circle_fraction <= 1.0)) {
+    out << "ObjectPoseOptions: min_circle_inlier_fraction, min_rim_coverage and "
+           "max_outside_circle_fraction must be in [0, 1], circle_band_fraction and "
+           "circle_band_min_mm >= 0";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
   } else if (!(max_gap_points >= 0 && gap_margin_mm >= 0.0 && std::isfinite(gap_margin_mm))) {
@@ -157,6 +164,80 @@ std::optional<Circle2D> FitCircle(const std::vector<Eigen::Vector2d>& points) {
     sum += r * r;
   }
   circle.rms_residual = std::sqrt(sum / static_cast<double>(points.size()));
+  return circle;
+}
+
+std::optional<Circle2D> FitCircleRobust(const std::vector<Eigen::Vector2d>& points, double band,
+                                        double max_radius, int* inliers) {
+  // Hand-written RANSAC (exhaustive over the candidate triples, so deterministic): OpenCV's
+  // circle and ellipse fits (cv::fitEllipse*, cv::minEnclosingCircle) have no outlier
+  // rejection, cv::HoughCircles works on images, and Eigen has no robust fit.
+  if (inliers != nullptr) *inliers = 0;
+  if (points.size() < 3) return std::nullopt;
+  constexpr std::size_t kMaxCandidates = 40;  // 9880 triples
+  std::vector<Eigen::Vector2d> candidates;
+  if (points.size() <= kMaxCandidates) {
+    candidates = points;
+  } else {
+    for (std::size_t k = 0; k < kMaxCandidates; ++k) {
+      candidates.push_back(points[k * (points.size() - 1) / (kMaxCandidates - 1)]);
+    }
+  }
+  const auto count_within = [&](const Eigen::Vector2d& centre, double radius) {
+    int count = 0;
+    for (const auto& p : points) {
+      if (std::abs((p - centre).norm() - radius) <= band) ++count;
+    }
+    return count;
+  };
+  int best = 0;
+  Eigen::Vector2d best_centre = Eigen::Vector2d::Zero();
+  double best_radius = 0.0;
+  const std::size_t n = candidates.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = i + 1; j < n; ++j) {
+      for (std::size_t k = j + 1; k < n; ++k) {
+        // Circumcentre: equidistant from the three points (two perpendicular bisectors).
+        const Eigen::Vector2d a = candidates[i], b = candidates[j] - a, c = candidates[k] - a;
+        const double det = 2.0 * (b.x() * c.y() - b.y() * c.x());
+        if (std::abs(det) < 1e-9) continue;
+        const Eigen::Vector2d offset((c.y() * b.squaredNorm() - b.y() * c.squaredNorm()) / det,
+                                     (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / det);
+        const double radius = offset.norm();
+        if (radius > max_radius) continue;
+        const int count = count_within(a + offset, radius);
+        if (count > best) {
+          best = count;
+          best_centre = a + offset;
+          best_radius = radius;
+        }
+      }
+    }
+  }
+  if (best < 3) return std::nullopt;
+  // Least squares on the consensus, kept only when it holds at least as many points.
+  std::vector<Eigen::Vector2d> consensus;
+  for (const auto& p : points) {
+    if (std::abs((p - best_centre).norm() - best_radius) <= band) consensus.push_back(p);
+  }
+  Circle2D circle;
+  circle.centre = best_centre;
+  circle.radius = best_radius;
+  if (const auto refined = FitCircle(consensus);
+      refined && refined->radius <= max_radius &&
+      count_within(refined->centre, refined->radius) >= best) {
+    circle = *refined;
+  }
+  double sum = 0.0;
+  int count = 0;
+  for (const auto& p : points) {
+    const double r = (p - circle.centre).norm() - circle.radius;
+    if (std::abs(r) > band) continue;
+    sum += r * r;
+    ++count;
+  }
+  circle.rms_residual = count > 0 ? std::sqrt(sum / count) : 0.0;
+  if (inliers != nullptr) *inliers = count;
   return circle;
 }
 
@@ -305,6 +386,44 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
         pose.circle_centre = circle->centre;
         pose.circle_radius = circle->radius;
         centre = circle->centre;
+      }
+    }
+    if (!pose.round && options.min_circle_inlier_fraction > 0.0 &&
+        hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints) {
+      double diameter = 0.0;
+      for (std::size_t a = 0; a < hull.size(); ++a) {
+        for (std::size_t b = a + 1; b < hull.size(); ++b) {
+          diameter = std::max(diameter, (hull[a] - hull[b]).norm());
+        }
+      }
+      const double band = std::max(options.circle_band_min_mm,
+                                   options.circle_band_fraction * 0.5 * diameter);
+      int inliers = 0;
+      // No radius above the diameter: the visible part of a disc is at least a shallow cap.
+      if (const auto circle = FitCircleRobust(hull, band, diameter, &inliers);
+          circle && inliers >= options.min_circle_inlier_fraction * static_cast<double>(hull.size()) &&
+          circle->rms_residual < options.max_circle_residual * circle->radius) {
+        constexpr int kRimBins = 36;
+        std::vector<bool> rim_bin(kRimBins, false);
+        std::size_t outside = 0;
+        for (const auto& p : top_xy) {
+          const Eigen::Vector2d d = p - circle->centre;
+          const double radial = d.norm() - circle->radius;
+          if (radial > band) ++outside;
+          if (std::abs(radial) > band) continue;
+          const double turn = (std::atan2(d.y(), d.x()) + std::numbers::pi) / (2.0 * std::numbers::pi);
+          rim_bin[std::min(kRimBins - 1, static_cast<int>(turn * kRimBins))] = true;
+        }
+        const double coverage =
+            static_cast<double>(std::count(rim_bin.begin(), rim_bin.end(), true)) / kRimBins;
+        if (coverage >= options.min_rim_coverage &&
+            static_cast<double>(outside) <=
+                options.max_outside_circle_fraction * static_cast<double>(top_xy.size())) {
+          pose.round = true;
+          pose.circle_centre = circle->centre;
+          pose.circle_radius = circle->radius;
+          centre = circle->centre;
+        }
       }
     }
   }

@@ -56,6 +56,28 @@ struct ObjectPoseOptions {
   /// the circle, where the rectangle's centre shifts. Needs 8 hull vertices and 60 top points
   /// (a fragment of a face can fit some circle by chance). 0 disables the fit.
   double max_circle_residual = 0.02;
+  /// Partly seen round tops: where a neighbour hides part of a disc or its rim finds no matches
+  /// along an arc, the hull closes the gap with a chord and keeps a few vertices inside the
+  /// circle (seeds 17030, 17058, 17162, 17181, 9013, 9026, 19011: 2-10 % residual over all
+  /// vertices, the rectangle's centre 4.7-12 mm off), yet most of its vertices still lie on the
+  /// rim. FitCircleRobust then finds that rim: the top is round when at least
+  /// min_circle_inlier_fraction of the hull vertices lie within the band of one circle (0
+  /// disables this second test) ...
+  double min_circle_inlier_fraction = 0.7;
+  /// ... the band being this fraction of half the hull's diameter, at least circle_band_min_mm
+  /// (the rim's points scatter about 0.5 mm in the default cell; a band relative to the radius
+  /// would let a huge circle pass through any piece of edge) ...
+  double circle_band_fraction = 0.03;
+  double circle_band_min_mm = 0.5;
+  /// ... the top points within that band cover at least this fraction of the rim (10 degree
+  /// bins): a rectangle's corners lie on its circumscribed circle, but only short pieces of its
+  /// outline do (at most 0.25 of the rim on seeds 13000-13029 and 9000-9039, against at least
+  /// 0.39 for a partly seen disc) ...
+  double min_rim_coverage = 1.0 / 3.0;
+  /// ... and at most this fraction of the top points lie beyond the band outside the circle:
+  /// a disc hides nothing outside its rim, where the union of a disc and a neighbour joined by
+  /// the clustering does (a few mismatches at the top height may).
+  double max_outside_circle_fraction = 0.02;
   /// MergeTopFaceIslands joins two pieces of one split top face when their outlines are at
   /// most this far apart (mm): the featureless middle of a textured top face. Further apart,
   /// they join only when they outline one face together (PiecesOutlineOneFace): a plain top face
@@ -158,7 +180,9 @@ struct ObjectPose {
   double yaw_deg = 0.0;          ///< by options.yaw_method, in (-90, 90]
   double yaw_moments_deg = 0.0;  ///< thesis central moments, in (-90, 90]
   Rectangle2D top_rectangle;     ///< minimum-area rectangle of the top face's points
-  bool round = false;            ///< the top face's hull fits a circle (see max_circle_residual)
+  /// The top face's hull fits a circle (see max_circle_residual), or most of it does
+  /// (see min_circle_inlier_fraction).
+  bool round = false;
   /// Area of the top face's convex hull over its rectangle's area (1 for a full rectangle, about
   /// 0.79 for a disc's points in their square): low for the union of two touching faces.
   double top_fill = 0.0;
@@ -194,6 +218,14 @@ struct Circle2D {
   double rms_residual = 0.0;
 };
 std::optional<Circle2D> FitCircle(const std::vector<Eigen::Vector2d>& points);
+
+/// Circle through most of `points` despite outliers (a disc's hull whose missing arc is closed
+/// by a chord): the three-point circle that has the most points within `band` (mm) of its rim,
+/// over triples of up to 40 evenly spaced points and no larger than `max_radius`, refined by
+/// FitCircle on those points. `inliers` gets their count. nullopt for fewer than three points
+/// or when no triple gives a circle.
+std::optional<Circle2D> FitCircleRobust(const std::vector<Eigen::Vector2d>& points, double band,
+                                        double max_radius, int* inliers);
 
 /// Maps an angle (degrees) to (-90, 90] (an axis, not a direction).
 double NormaliseAxisAngle(double angle_deg);

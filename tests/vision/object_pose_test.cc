@@ -195,6 +195,48 @@ TEST(ObjectPose, RoundTopCentreFromCircleFitWhenPartlyHidden) {
   EXPECT_FALSE(EstimateObjectPose(box, box_indices).round);
 }
 
+// A disc whose missing arc the hull closes with a chord through a few points inside the rim
+// (the edge of whatever hid it, mismatches): the circle fit to all hull vertices is several
+// percent off, the robust one through the rim's vertices finds the centre. Boxes, square or
+// not, stay rectangles.
+TEST(ObjectPose, PartlySeenRoundTopWithPointsInsideItsRimIsRound) {
+  std::mt19937 random(kSeed);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  std::vector<Eigen::Vector3d> points;
+  const Eigen::Vector2d centre(50, 400);
+  for (int k = 0; k < 200; ++k) {  // a 270-degree arc of radius 20 mm at 30 mm
+    const double angle = (-90.0 + 270.0 * k / 200.0) * std::numbers::pi / 180.0;
+    points.emplace_back(centre.x() + 20 * std::cos(angle) + noise(random),
+                        centre.y() + 20 * std::sin(angle) + noise(random), 30 + noise(random));
+  }
+  for (int k = 0; k < 7; ++k) {  // beyond the chord, 3-4 mm inside the rim
+    const double angle = (195.0 + 10.0 * k) * std::numbers::pi / 180.0;
+    const double radius = 16.5 + 0.5 * std::sin(k);
+    points.emplace_back(centre.x() + radius * std::cos(angle), centre.y() + radius * std::sin(angle),
+                        30 + noise(random));
+  }
+  std::vector<int> indices(points.size());
+  for (std::size_t k = 0; k < indices.size(); ++k) indices[k] = static_cast<int>(k);
+  ObjectPoseOptions whole_hull_only;
+  whole_hull_only.min_circle_inlier_fraction = 0.0;
+  EXPECT_FALSE(EstimateObjectPose(points, indices, whole_hull_only).round)
+      << "the failure the robust fit exists for";
+  const ObjectPose pose = EstimateObjectPose(points, indices);
+  EXPECT_TRUE(pose.round);
+  EXPECT_LT((pose.centroid.head<2>() - centre).norm(), 0.5);
+  EXPECT_NEAR(pose.circle_radius, 20.0, 0.5);
+
+  for (const auto& [length, width] : {std::pair{60.0, 40.0}, std::pair{35.0, 32.0}, std::pair{30.0, 30.0}}) {
+    std::vector<Eigen::Vector3d> box;
+    std::vector<int> box_indices;
+    for (const auto& p : RectanglePoints({0, 0}, length, width, 20, 300, 0.3, &random)) {
+      box_indices.push_back(static_cast<int>(box.size()));
+      box.emplace_back(p.x(), p.y(), 20.0);
+    }
+    EXPECT_FALSE(EstimateObjectPose(box, box_indices).round) << length << " x " << width;
+  }
+}
+
 // A top face split in two (no texture across its middle) joins; two parts of the same height
 // with the table seen between them stay apart.
 TEST(ObjectPose, SplitTopFaceJoinsUnlessTheTableShowsBetween) {

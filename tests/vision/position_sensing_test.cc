@@ -703,6 +703,38 @@ TEST(PositionSensing, APieceOfAnOutlineThatFitsACircleByChanceIsFlagged) {
   EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
 }
 
+TEST(PositionSensing, APartlySeenRoundTopIsRound) {
+  // Stress run, `render --seed 17181`: a round top 70 mm across, 41 mm tall, whose rim found no
+  // matches along a 90 degree arc; the hull closed it with a chord, the circle fit to all hull
+  // vertices was 5 % off, and the rectangle's centre 6.0 mm from the disc's, unflagged. Most
+  // hull vertices still lie on the rim (FitCircleRobust, min_circle_inlier_fraction).
+  PositionSensingOptions before = CpuOptions();
+  before.pose.min_circle_inlier_fraction = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(17181, before);
+  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
+  EXPECT_EQ(sensed.truth.false_objects, 0);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 3.0);
+  double worst_before = 0.0;
+  for (const TruthPairing& pair : sensed.truth_before.pairs) {
+    worst_before = std::max(worst_before, pair.centroid_error_mm);
+  }
+  EXPECT_GT(worst_before, 5.0) << "the failure the rule exists for";
+}
+
+TEST(PositionSensing, ARoundTopLessThanHalfSeenIsRound) {
+  // Stress run, `render --seed 9013 --min-gap 0`: a round top 61 mm across, 31 mm tall, seen
+  // along only 150 degrees of its rim; the rectangle of what was seen put its centre 12 mm off,
+  // unflagged. The robust circle through the seen arc finds the disc's centre.
+  SceneRenderOptions options;
+  options.seed = 9013;
+  options.min_gap_mm = 0.0;
+  PositionSensingOptions before = CpuOptions();
+  before.pose.min_circle_inlier_fraction = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(options, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+}
+
 TEST(PositionSensing, RecallWithGaussianNoiseOnF) {
   const int num_scenes = FullAcceptance() ? 20 : 2;
   Figures figures;
