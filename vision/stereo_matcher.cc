@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <stdexcept>
 
 
@@ -92,8 +93,23 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const auto total_start = Clock::now();
 
   auto start = Clock::now();
-  const FeatureReport left = DetectFeatures(left_grey, options.features);
-  const FeatureReport right = DetectFeatures(right_grey, options.features);
+  // The two images' features are independent: detected side by side on OpenCV's thread pool
+  // (a detector's own parallel loops then run serially inside). An exception in either is
+  // carried out of the pool and rethrown here, left image first.
+  FeatureReport left, right;
+  std::exception_ptr failed[2];
+  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
+    for (int side = range.start; side < range.end; ++side) {
+      try {
+        (side == 0 ? left : right) = DetectFeatures(side == 0 ? left_grey : right_grey, options.features);
+      } catch (...) {
+        failed[side] = std::current_exception();
+      }
+    }
+  });
+  for (const std::exception_ptr& error : failed) {
+    if (error) std::rethrow_exception(error);
+  }
   report.timing_ms.features = MillisecondsSince(start);
   report.left_features = left.points;
   report.right_features = right.points;
