@@ -407,6 +407,21 @@ void ExpectEveryPartFoundAndOneLostWithoutTheRule(const SensedTwice& sensed, con
   EXPECT_LT(sensed.truth_before.detected, static_cast<int>(sensed.scene.objects.size())) << what;
 }
 
+// With the rule: every part found within `within_mm` of its true centre, no false part; without
+// it (`truth_before`), some part's pose more than `far_before_mm` off - the failure the rule
+// exists for.
+void ExpectEveryPartWithinAndOneFarWithoutTheRule(const SensedTwice& sensed, double within_mm,
+                                                  double far_before_mm) {
+  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
+  EXPECT_EQ(sensed.truth.false_objects, 0);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, within_mm);
+  double worst_before = 0.0;
+  for (const TruthPairing& pair : sensed.truth_before.pairs) {
+    worst_before = std::max(worst_before, pair.centroid_error_mm);
+  }
+  EXPECT_GT(worst_before, far_before_mm) << "the failure the rule exists for";
+}
+
 TEST(PositionSensing, TwoPartsShowingTheTableBetweenThemStayTwo) {
   // Issue 12 stress run, `render --seed 10080`: a 70 x 34 mm and a 68 x 54 mm box, 58 and 57 mm
   // tall, stand 15+ mm apart. Neither shows an edge facing the other along the whole gap, and
@@ -450,14 +465,7 @@ TEST(PositionSensing, APlainBoxsBaseEdgeDoesNotKeepItsTopFaceApart) {
   PositionSensingOptions before = CpuOptions();
   before.pose.hidden_margin_mm = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
-  double worst_before = 0.0;
-  for (const TruthPairing& pair : sensed.truth_before.pairs) {
-    worst_before = std::max(worst_before, pair.centroid_error_mm);
-  }
-  EXPECT_GT(worst_before, 10.0) << "the failure the rule exists for";
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 4.0, 10.0);
   EXPECT_GT(sensed.truth_before.false_objects, 0) << "the failure the rule exists for";
 }
 
@@ -527,14 +535,7 @@ TEST(PositionSensing, ALinePointingAtAPartDoesNotJoinIt) {
   PositionSensingOptions before = CpuOptions();
   before.pose.max_thin_piece_width_mm = std::numeric_limits<double>::infinity();
   const SensedTwice sensed = SenseWithAndWithout(11088, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 4.0);
-  double worst_before = 0.0;
-  for (const TruthPairing& pair : sensed.truth_before.pairs) {
-    worst_before = std::max(worst_before, pair.centroid_error_mm);
-  }
-  EXPECT_GT(worst_before, 10.0) << "the failure the rule exists for";
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 4.0, 10.0);
 }
 
 TEST(PositionSensing, ALoneMismatchDoesNotStretchTheTopFace) {
@@ -545,14 +546,7 @@ TEST(PositionSensing, ALoneMismatchDoesNotStretchTheTopFace) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_top_group_points = 0;
   const SensedTwice sensed = SenseWithAndWithout(10147, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 3.0);
-  double worst_before = 0.0;
-  for (const TruthPairing& pair : sensed.truth_before.pairs) {
-    worst_before = std::max(worst_before, pair.centroid_error_mm);
-  }
-  EXPECT_GT(worst_before, 4.0) << "the failure the rule exists for";
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 3.0, 4.0);
 }
 
 TEST(PositionSensing, AChainOfPointsBeyondTheFaceDoesNotStretchIt) {
@@ -564,14 +558,7 @@ TEST(PositionSensing, AChainOfPointsBeyondTheFaceDoesNotStretchIt) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_top_group_fraction = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(17136, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 3.0);
-  double worst_before = 0.0;
-  for (const TruthPairing& pair : sensed.truth_before.pairs) {
-    worst_before = std::max(worst_before, pair.centroid_error_mm);
-  }
-  EXPECT_GT(worst_before, 10.0) << "the failure the rule exists for";
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 3.0, 10.0);
 }
 
 TEST(PositionSensing, ASmallTopKeepsTheCornersThatOrientIt) {
@@ -711,14 +698,7 @@ TEST(PositionSensing, APartlySeenRoundTopIsRound) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_circle_inlier_fraction = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(17181, before);
-  EXPECT_EQ(sensed.truth.detected, static_cast<int>(sensed.scene.objects.size()));
-  EXPECT_EQ(sensed.truth.false_objects, 0);
-  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 3.0);
-  double worst_before = 0.0;
-  for (const TruthPairing& pair : sensed.truth_before.pairs) {
-    worst_before = std::max(worst_before, pair.centroid_error_mm);
-  }
-  EXPECT_GT(worst_before, 5.0) << "the failure the rule exists for";
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 3.0, 5.0);
 }
 
 TEST(PositionSensing, ARoundTopLessThanHalfSeenIsRound) {
