@@ -194,6 +194,10 @@ struct ObjectPose {
   /// Touching parts of about equal height that could not be separated: the pose may lie
   /// between them (OBJECTS.json "merged": true; the robot's safety gate refuses it).
   bool merged = false;
+  /// Points of other parts within PositionSensingOptions::touch_reach_mm of this top face's
+  /// rectangle in the table plane (set by SensePositions): a part touching another
+  /// (`--min-gap 0`) whose pose the neighbour may have pulled or joined.
+  int touching_points = 0;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points

@@ -20,6 +20,38 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+
+// ObjectPose::touching_points: for each pose, the strong points of the other poses' clusters at
+// least `min_height_mm` above the table (a part's own base edge lies at the
+// table), within `reach_mm` of its top face's rectangle in the table plane.
+void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::vector<bool>& weak,
+                         double reach_mm, double min_height_mm, std::vector<ObjectPose>* poses) {
+  std::vector<int> owner(points.size(), -1);
+  for (std::size_t a = 0; a < poses->size(); ++a) {
+    for (int i : (*poses)[a].point_indices) owner[static_cast<std::size_t>(i)] = static_cast<int>(a);
+  }
+  for (std::size_t a = 0; a < poses->size(); ++a) {
+    ObjectPose& pose = (*poses)[a];
+    const Rectangle2D& r = pose.top_rectangle;
+    const double angle = r.yaw_deg * std::numbers::pi / 180.0;
+    const Eigen::Vector2d along(std::cos(angle), std::sin(angle));
+    const Eigen::Vector2d across(-along.y(), along.x());
+    pose.touching_points = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      // Only other parts' points: strong points that joined no part lie all around every part
+      // (its sides, mismatches), touching or not.
+      if (owner[i] < 0 || owner[i] == static_cast<int>(a) || weak[i] || points[i].z() < min_height_mm) {
+        continue;
+      }
+      const Eigen::Vector2d d = points[i].head<2>() - r.centre;
+      if (std::abs(d.dot(along)) <= 0.5 * r.length + reach_mm &&
+          std::abs(d.dot(across)) <= 0.5 * r.width + reach_mm) {
+        ++pose.touching_points;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 MatcherOptions PickCellMatcherOptions() {
@@ -54,6 +86,12 @@ std::string PositionSensingOptions::Check() const {
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
   if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
   if (!(min_round_top_fill >= 0.0 && min_round_top_fill <= 1.0)) return "min_round_top_fill must be in [0, 1]";
+  if (!(touch_reach_mm >= 0.0)) return "touch_reach_mm must be >= 0";
+  if (touch_min_points < 1) return "touch_min_points must be >= 1";
+  if (!(min_touching_top_fill >= 0.0 && min_touching_top_fill <= 1.0)) {
+    return "min_touching_top_fill must be in [0, 1]";
+  }
+  if (!(min_whole_top_width_mm >= 0.0)) return "min_whole_top_width_mm must be >= 0";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -191,10 +229,18 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   });
   report.objects =
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
+  CountTouchingPoints(report.points_in_world, report.weak, options.touch_reach_mm, 5.0, &report.objects);
   for (ObjectPose& pose : report.objects) {
     // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
     pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
                   (pose.top_roundness > 0.06 || pose.top_fill < options.min_round_top_fill);
+    // Beside a neighbour, only a full rectangle (or a round top) is trusted.
+    if (!pose.round && pose.touching_points >= options.touch_min_points &&
+        pose.top_fill < options.min_touching_top_fill) {
+      pose.merged = true;
+    }
+    // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
+    if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) pose.merged = true;
     if (pose.merged) ++report.merged;
   }
   report.timing_ms.pose = MillisecondsSince(start);
@@ -239,7 +285,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
            {"yaw_deg", pose.top_rectangle.yaw_deg}}},
          {"round", pose.round},
          {"top_fill", pose.top_fill},
-         {"merged", pose.merged}});
+         {"merged", pose.merged},
+         {"touching_points", pose.touching_points}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

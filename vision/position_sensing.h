@@ -71,6 +71,25 @@ struct PositionSensingOptions {
   /// partial outline fit some circle by chance (`--min-gap 0`, seed 9029: a 72 x 27 mm piece
   /// of a box's outline, fill 0.52, roundness 0.023, its pose 4.9 mm off and unflagged).
   double min_round_top_fill = 0.6;
+  /// A part counts as touching another when at least touch_min_points of the other parts'
+  /// points lie within this distance (mm) of its top face's rectangle in the table plane
+  /// (ObjectPose::touching_points). render's parts stand at least 15 mm apart unless
+  /// `--min-gap` says otherwise.
+  double touch_reach_mm = 12.0;
+  int touch_min_points = 3;
+  /// A touching part that is not round is flagged merged when its top fills less than this
+  /// fraction of its rectangle: beside a neighbour, a top that is not a full rectangle was
+  /// either cut by the neighbour (hidden corners, the rectangle shifted) or stretched by it (a
+  /// neighbour's edge in line), and its centre may be several mm off. `--min-gap 0`, seeds
+  /// 19007, 19027, 29020, 39036, 39062, 39076: fills 0.73-0.89, centres 4.4-13.3 mm off,
+  /// unflagged under min_top_fill alone. 0 disables the rule.
+  double min_touching_top_fill = 0.9;
+  /// A part whose top face's rectangle is narrower than this (mm), yet at least
+  /// min_top_width_mm, is a piece of a face, not a face: flagged merged. render's narrowest side
+  /// is 25 mm (SceneRenderOptions::min_side_mm) and every part found within 4 mm of its centre
+  /// on the stress seeds measured at least 20 mm wide; `--min-gap 0`, seed 29020: a 68 mm round
+  /// top seen as a 27 x 8 mm piece, its pose 5.6 mm off. Lower it for thinner parts; 0 disables.
+  double min_whole_top_width_mm = 18.0;
   std::string Check() const;
 };
 

@@ -279,7 +279,10 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
-        std::printf("fill %.3f %s %.1f\n", pose.top_fill, pose.round ? "round" : "rect", nearest_mm);
+        std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
+                    pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
+                    pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,
+                    pose.merged ? 1 : 0, static_cast<int>(seed));
       }
       if (!paired[d] || pose.merged || nearest_mm > 4.0) {
         if (std::getenv("HNNSTEREO_DEBUG") != nullptr) {

@@ -186,6 +186,15 @@ TEST(PositionSensing, BadOptionsAreRefused) {
   options = CpuOptions();
   options.matcher.candidates.rectified = true;
   EXPECT_FALSE(options.Check().empty());
+  options = CpuOptions();
+  options.touch_min_points = 0;
+  EXPECT_NE(options.Check().find("touch_min_points"), std::string::npos);
+  options = CpuOptions();
+  options.min_touching_top_fill = 1.5;
+  EXPECT_NE(options.Check().find("min_touching_top_fill"), std::string::npos);
+  options = CpuOptions();
+  options.min_whole_top_width_mm = -1.0;
+  EXPECT_NE(options.Check().find("min_whole_top_width_mm"), std::string::npos);
   EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
                std::invalid_argument);
 }
@@ -685,6 +694,42 @@ TEST(PositionSensing, APieceOfAnOutlineThatFitsACircleByChanceIsFlagged) {
   options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_round_top_fill = 0.0;
+  // The piece touches its neighbours, so min_touching_top_fill flags it too: off, to see this
+  // rule alone.
+  before.min_touching_top_fill = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(options, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+}
+
+TEST(PositionSensing, TwoTouchingPartsJoinedIntoOneAreFlagged) {
+  // Stress run, `render --seed 39002 --min-gap 0`: a 64 x 45 mm box and a cylinder 64 mm across,
+  // both 89 mm tall, touching, joined by the clustering into one 145 x 69 mm top that filled
+  // 0.80 of its rectangle (just at min_top_fill): reported unflagged 34 mm from either part.
+  // Beside another part (touching_points), only a full rectangle is trusted
+  // (min_touching_top_fill).
+  SceneRenderOptions options;
+  options.seed = 39002;
+  options.min_gap_mm = 0.0;
+  PositionSensingOptions before = CpuOptions();
+  before.min_touching_top_fill = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(options, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  int touching = 0;
+  for (const ObjectPose& pose : sensed.report.objects) touching += pose.touching_points > 0;
+  EXPECT_GE(touching, 1);
+}
+
+TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
+  // Stress run, `render --seed 29020 --min-gap 0`: a cylinder 68 mm across, 82 mm tall, between
+  // touching neighbours, seen only as a 27 x 8 mm piece of its top; reported unflagged 5.6 mm
+  // from its centre. No part's top is that narrow (min_whole_top_width_mm).
+  SceneRenderOptions options;
+  options.seed = 29020;
+  options.min_gap_mm = 0.0;
+  PositionSensingOptions before = CpuOptions();
+  before.min_whole_top_width_mm = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(options, before);
   EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
   EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
