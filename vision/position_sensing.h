@@ -72,17 +72,22 @@ struct PositionSensingOptions {
   /// of a box's outline, fill 0.52, roundness 0.023, its pose 4.9 mm off and unflagged).
   double min_round_top_fill = 0.6;
   /// A part counts as touching another when at least touch_min_points of the other parts'
-  /// points lie within this distance (mm) of its top face's rectangle in the table plane
+  /// points (strong, 5 mm or more above the table) lie within this distance (mm) of its top
+  /// face's rectangle in the table plane, or, for points 5 mm or more above its top, when their
+  /// ray from either camera meets the plane of its top that near the rectangle: a taller
+  /// neighbour that hides part of the top from a camera cuts the rectangle there
   /// (ObjectPose::touching_points). render's parts stand at least 15 mm apart unless
-  /// `--min-gap` says otherwise.
+  /// `--min-gap` says otherwise. In a cell that picks tallest first and senses again after
+  /// each pick, a part refused for a taller neighbour's shadow is seen whole once that
+  /// neighbour is gone.
   double touch_reach_mm = 12.0;
   int touch_min_points = 3;
   /// A touching part that is not round is flagged merged when its top fills less than this
   /// fraction of its rectangle: beside a neighbour, a top that is not a full rectangle was
   /// either cut by the neighbour (hidden corners, the rectangle shifted) or stretched by it (a
-  /// neighbour's edge in line), and its centre may be several mm off. `--min-gap 0`, seeds
-  /// 19007, 19027, 29020, 39036, 39062, 39076: fills 0.73-0.89, centres 4.4-13.3 mm off,
-  /// unflagged under min_top_fill alone. 0 disables the rule.
+  /// neighbour's edge in line) or joined with it, and its centre may be several mm off.
+  /// `--min-gap 0`, seeds 19007, 19027, 39002, 39036, 39042, 39062, 39076: fills 0.73-0.90,
+  /// centres 4.4-34 mm off, unflagged under min_top_fill alone. 0 disables the rule.
   double min_touching_top_fill = 0.9;
   /// A part whose top face's rectangle is narrower than this (mm), yet at least
   /// min_top_width_mm, is a piece of a face, not a face: flagged merged. render's narrowest side

@@ -721,6 +721,21 @@ TEST(PositionSensing, TwoTouchingPartsJoinedIntoOneAreFlagged) {
   EXPECT_GE(touching, 1);
 }
 
+TEST(PositionSensing, ATopCutByATallerNeighboursShadowIsFlagged) {
+  // Stress run, `render --seed 19027 --min-gap 0`: a 61 x 35 mm box, 25 mm tall, among taller
+  // parts that hide part of its top from the cameras: seen as 47 x 30 mm (fill 0.87), its pose
+  // 7.5 mm off and unflagged; the neighbours' points lie 12 mm or more from the cut rectangle
+  // in the table plane, but their rays from the cameras cross the plane of its top beside it.
+  SceneRenderOptions options;
+  options.seed = 19027;
+  options.min_gap_mm = 0.0;
+  PositionSensingOptions before = CpuOptions();
+  before.min_touching_top_fill = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(options, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+}
+
 TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
   // Stress run, `render --seed 29020 --min-gap 0`: a cylinder 68 mm across, 82 mm tall, between
   // touching neighbours, seen only as a 27 x 8 mm piece of its top; reported unflagged 5.6 mm
