@@ -379,43 +379,54 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
     // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
     constexpr std::size_t kMinCirclePoints = 60;
-    if (hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints) {
+    const bool enough = hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints;
+    double diameter = 0.0;
+    for (std::size_t a = 0; enough && a < hull.size(); ++a) {
+      for (std::size_t b = a + 1; b < hull.size(); ++b) {
+        diameter = std::max(diameter, (hull[a] - hull[b]).norm());
+      }
+    }
+    const double band = std::max(options.circle_band_min_mm,
+                                 options.circle_band_fraction * 0.5 * diameter);
+    // The share of the rim (10 degree bins) that top points within `band` of it cover, and the
+    // count of top points beyond the band outside the circle.
+    const auto rim_coverage = [&](const Circle2D& circle, std::size_t* outside) {
+      constexpr int kRimBins = 36;
+      std::vector<bool> rim_bin(kRimBins, false);
+      *outside = 0;
+      for (const auto& p : top_xy) {
+        const Eigen::Vector2d d = p - circle.centre;
+        const double radial = d.norm() - circle.radius;
+        if (radial > band) ++*outside;
+        if (std::abs(radial) > band) continue;
+        const double turn = (std::atan2(d.y(), d.x()) + std::numbers::pi) / (2.0 * std::numbers::pi);
+        rim_bin[std::min(kRimBins - 1, static_cast<int>(turn * kRimBins))] = true;
+      }
+      return static_cast<double>(std::count(rim_bin.begin(), rim_bin.end(), true)) / kRimBins;
+    };
+    if (enough) {
+      std::size_t outside = 0;
+      // The rim-coverage test holds here too: the hull of a long strip keeps its vertices at
+      // its two ends, near the corners, and those lie on the rectangle's circumscribed circle
+      // (seed 25025: a 158 x 22 mm strip at 15 mm "round" with a radius of 89 mm, an
+      // unflagged false part 41 mm from any part).
       if (const auto circle = FitCircle(hull);
-          circle && circle->rms_residual < options.max_circle_residual * circle->radius) {
+          circle && circle->rms_residual < options.max_circle_residual * circle->radius &&
+          rim_coverage(*circle, &outside) >= options.min_rim_coverage) {
         pose.round = true;
         pose.circle_centre = circle->centre;
         pose.circle_radius = circle->radius;
         centre = circle->centre;
       }
     }
-    if (!pose.round && options.min_circle_inlier_fraction > 0.0 &&
-        hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints) {
-      double diameter = 0.0;
-      for (std::size_t a = 0; a < hull.size(); ++a) {
-        for (std::size_t b = a + 1; b < hull.size(); ++b) {
-          diameter = std::max(diameter, (hull[a] - hull[b]).norm());
-        }
-      }
-      const double band = std::max(options.circle_band_min_mm,
-                                   options.circle_band_fraction * 0.5 * diameter);
+    if (!pose.round && options.min_circle_inlier_fraction > 0.0 && enough) {
       int inliers = 0;
       // No radius above the diameter: the visible part of a disc is at least a shallow cap.
       if (const auto circle = FitCircleRobust(hull, band, diameter, &inliers);
           circle && inliers >= options.min_circle_inlier_fraction * static_cast<double>(hull.size()) &&
           circle->rms_residual < options.max_circle_residual * circle->radius) {
-        constexpr int kRimBins = 36;
-        std::vector<bool> rim_bin(kRimBins, false);
         std::size_t outside = 0;
-        for (const auto& p : top_xy) {
-          const Eigen::Vector2d d = p - circle->centre;
-          const double radial = d.norm() - circle->radius;
-          if (radial > band) ++outside;
-          if (std::abs(radial) > band) continue;
-          const double turn = (std::atan2(d.y(), d.x()) + std::numbers::pi) / (2.0 * std::numbers::pi);
-          rim_bin[std::min(kRimBins - 1, static_cast<int>(turn * kRimBins))] = true;
-        }
-        const double coverage =
-            static_cast<double>(std::count(rim_bin.begin(), rim_bin.end(), true)) / kRimBins;
+        const double coverage = rim_coverage(*circle, &outside);
         if (coverage >= options.min_rim_coverage &&
             static_cast<double>(outside) <=
                 options.max_outside_circle_fraction * static_cast<double>(top_xy.size())) {

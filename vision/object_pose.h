@@ -72,7 +72,9 @@ struct ObjectPoseOptions {
   /// ... the top points within that band cover at least this fraction of the rim (10 degree
   /// bins): a rectangle's corners lie on its circumscribed circle, but only short pieces of its
   /// outline do (at most 0.25 of the rim on seeds 13000-13029 and 9000-9039, against at least
-  /// 0.39 for a partly seen disc) ...
+  /// 0.39 for a partly seen disc). The whole-hull fit of max_circle_residual must pass this too
+  /// (seed 25025: a 158 x 22 mm strip whose hull vertices sat at its ends, near its corners,
+  /// fitted a circle of 89 mm radius to 2 %) ...
   double min_rim_coverage = 1.0 / 3.0;
   /// ... and at most this fraction of the top points lie beyond the band outside the circle:
   /// a disc hides nothing outside its rim, where the union of a disc and a neighbour joined by

@@ -677,6 +677,7 @@ TEST(PositionSensing, TouchingPartsOfUnequalHeightAreSeparated) {
   options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.pose.min_top_level_difference_mm = 0.0;
+  before.min_touching_top_fill = 0.0;  // the touch rule flags it too: off, to see this rule alone
   const SensedTwice sensed = SenseWithAndWithout(options, before);
   EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
   EXPECT_GE(sensed.report.top_level_splits, 1);
@@ -736,6 +737,22 @@ TEST(PositionSensing, ATopCutByATallerNeighboursShadowIsFlagged) {
   EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
 }
 
+TEST(PositionSensing, AStripWhoseHullFitsACircleIsNotRound) {
+  // Stress run, `render --seed 25025`: a 158 x 22 mm strip of points at 15.6 mm (edges of
+  // several parts' sides) whose hull vertices sat at its two ends, near its corners, on the
+  // rectangle's circumscribed circle: the whole-hull circle fit was 1.6 % off, so the strip was
+  // "round" (radius 89 mm), exempt from every flag, and reported as a part 41 mm from any. Its
+  // points cover a twelfth of that rim; the rim-coverage test now holds for the whole-hull fit.
+  PositionSensingOptions before = CpuOptions();
+  before.pose.min_rim_coverage = 0.0;
+  const SensedTwice sensed = SenseWithAndWithout(25025, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  for (const ObjectPose& pose : sensed.report.objects) {
+    if (pose.round) EXPECT_LT(pose.circle_radius, 40.0);  // render's discs are at most 75 mm across
+  }
+}
+
 TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
   // Stress run, `render --seed 29020 --min-gap 0`: a cylinder 68 mm across, 82 mm tall, between
   // touching neighbours, seen only as a 27 x 8 mm piece of its top; reported unflagged 5.6 mm
@@ -770,6 +787,7 @@ TEST(PositionSensing, ARoundTopLessThanHalfSeenIsRound) {
   options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.pose.min_circle_inlier_fraction = 0.0;
+  before.min_touching_top_fill = 0.0;  // the touch rule flags it too: off, to see this rule alone
   const SensedTwice sensed = SenseWithAndWithout(options, before);
   EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
   EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
