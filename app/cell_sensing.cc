@@ -40,6 +40,15 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "Drop parts whose top face is narrower than this (mm): a line of points on a "
                   "tall part's side is not a part (0 keeps all)")
       ->capture_default_str();
+  cmd->add_option("--min-whole-top-width", sensing.min_whole_top_width_mm,
+                  "Flag parts (\"merged\": true, refused by the safety gate) whose top face is "
+                  "narrower than this (mm): a sliver of a face, not a face. Set it below your "
+                  "narrowest part (0 flags none)")
+      ->capture_default_str();
+  cmd->add_option("--min-touching-fill", sensing.min_touching_top_fill,
+                  "Flag a part beside another (or in a taller one's shadow) unless its top is "
+                  "round or fills this fraction of its minimum-area rectangle (0 flags none)")
+      ->capture_default_str();
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();
