@@ -21,7 +21,8 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 
-// ObjectPose::touching_points: for each pose, the strong points of the other poses' clusters at
+// ObjectPose::points_above_top: the strong points of its own cluster more than kAboveTopMm above
+// its top. ObjectPose::touching_points: for each pose, the strong points of the other poses' clusters at
 // least `min_height_mm` above the table (a part's own base edge lies at the table) that lie
 // within `reach_mm` of its top face's rectangle in the table plane, or that stand higher than
 // its top and whose ray from either camera centre crosses the plane of its top within
@@ -49,9 +50,13 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
              std::abs(d.dot(across)) <= 0.5 * r.width + reach_mm;
     };
     const double top = pose.height_mm;
-    constexpr double kAboveTopMm = 5.0;  // an occluder stands higher than the top layer
+    constexpr double kAboveTopMm = 5.0;  // above the top layer (ObjectPoseOptions::top_layer_mm)
     pose.touching_points = 0;
+    pose.points_above_top = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
+      if (owner[i] == static_cast<int>(a) && !weak[i] && points[i].z() > top + kAboveTopMm) {
+        ++pose.points_above_top;
+      }
       // Only other parts' points: strong points that joined no part lie all around every part
       // (its sides, mismatches), touching or not.
       if (owner[i] < 0 || owner[i] == static_cast<int>(a) || weak[i] ||
@@ -108,6 +113,7 @@ std::string PositionSensingOptions::Check() const {
   if (!(min_round_top_fill >= 0.0 && min_round_top_fill <= 1.0)) return "min_round_top_fill must be in [0, 1]";
   if (!(touch_reach_mm >= 0.0)) return "touch_reach_mm must be >= 0";
   if (touch_min_points < 1) return "touch_min_points must be >= 1";
+  if (min_points_above_top < 0) return "min_points_above_top must be >= 0";
   if (!(min_touching_top_fill >= 0.0 && min_touching_top_fill <= 1.0)) {
     return "min_touching_top_fill must be in [0, 1]";
   }
@@ -257,8 +263,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
                   (pose.top_roundness > 0.06 || pose.top_fill < options.min_round_top_fill);
     // Beside a neighbour, only a full rectangle (or a round top) is trusted.
-    if (!pose.round && pose.touching_points >= options.touch_min_points &&
-        pose.top_fill < options.min_touching_top_fill) {
+    const bool touching =
+        pose.touching_points >= options.touch_min_points ||
+        (options.min_points_above_top > 0 && pose.points_above_top >= options.min_points_above_top);
+    if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
       pose.merged = true;
     }
     // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
@@ -308,7 +316,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"round", pose.round},
          {"top_fill", pose.top_fill},
          {"merged", pose.merged},
-         {"touching_points", pose.touching_points}});
+         {"touching_points", pose.touching_points},
+         {"points_above_top", pose.points_above_top}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

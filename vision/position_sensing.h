@@ -82,12 +82,20 @@ struct PositionSensingOptions {
   /// neighbour is gone.
   double touch_reach_mm = 12.0;
   int touch_min_points = 3;
+  /// A part whose own cluster holds at least this many strong points more than 5 mm above its
+  /// top (ObjectPose::points_above_top) is touching a taller part the clustering joined to it
+  /// and did not report: the lower top is the densest, the taller part's walls stretch its
+  /// rectangle (`--min-gap 0`, seeds 59044 and 59096: 159 and 130 such points, centres 13 and
+  /// 18 mm off; good poses beside a taller part hold up to hundreds too, but fill their
+  /// rectangle). 0 disables it.
+  int min_points_above_top = 10;
   /// A touching part that is not round is flagged merged when its top fills less than this
   /// fraction of its rectangle: beside a neighbour, a top that is not a full rectangle was
   /// either cut by the neighbour (hidden corners, the rectangle shifted) or stretched by it (a
   /// neighbour's edge in line) or joined with it, and its centre may be several mm off.
-  /// `--min-gap 0`, seeds 19007, 19027, 39002, 39036, 39042, 39062, 39076: fills 0.73-0.90,
-  /// centres 4.4-34 mm off, unflagged under min_top_fill alone. 0 disables the rule.
+  /// `--min-gap 0`, seeds 19007, 19027, 39002, 39036, 39042, 39062, 39076, 59044, 59096:
+  /// fills 0.73-0.90, centres 4.4-34 mm off, unflagged under min_top_fill alone. 0 disables
+  /// the rule.
   double min_touching_top_fill = 0.9;
   /// A part whose top face's rectangle is narrower than this (mm), yet at least
   /// min_top_width_mm, is a piece of a face, not a face: flagged merged. render's narrowest side
