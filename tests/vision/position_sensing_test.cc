@@ -669,6 +669,21 @@ int FarUnflaggedPoses(const PositionSensingReport& report, const RenderedScene& 
   return far;
 }
 
+// With the rule: no unflagged pose more than 4 mm from every true centre; without it
+// (`before`), at least one - the failure the rule exists for.
+void ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(const SensedTwice& sensed) {
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+}
+
+// `render --seed SEED --min-gap 0` (touching parts) sensed with the defaults and with `before`.
+SensedTwice SenseTouchingWithAndWithout(std::uint64_t seed, const PositionSensingOptions& before) {
+  SceneRenderOptions options;
+  options.seed = seed;
+  options.min_gap_mm = 0.0;
+  return SenseWithAndWithout(options, before);
+}
+
 TEST(PositionSensing, TouchingPartsOfUnequalHeightAreSeparated) {
   // Stress run, `render --seed 9034 --min-gap 0`: two touching cylinders, 74 and 63 mm across,
   // 71 and 66 mm tall, joined in the clustering; both tops lay in one top layer, so the part
@@ -693,17 +708,12 @@ TEST(PositionSensing, APieceOfAnOutlineThatFitsACircleByChanceIsFlagged) {
   // others, seen as a 72 x 27 mm piece of its outline (fill 0.52) whose few hull vertices fit a
   // circle to 2.3 % - exempt from the merged flag as if a disc, its pose 4.9 mm off. Any piece
   // of a disc fills at least 2/3 of its rectangle (min_round_top_fill).
-  SceneRenderOptions options;
-  options.seed = 9029;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_round_top_fill = 0.0;
   // The piece touches its neighbours, so min_touching_top_fill flags it too: off, to see this
   // rule alone.
   before.min_touching_top_fill = 0.0;
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(9029, before));
 }
 
 TEST(PositionSensing, TwoTouchingPartsJoinedIntoOneAreFlagged) {
@@ -712,14 +722,10 @@ TEST(PositionSensing, TwoTouchingPartsJoinedIntoOneAreFlagged) {
   // 0.80 of its rectangle (just at min_top_fill): reported unflagged 34 mm from either part.
   // Beside another part (touching_points), only a full rectangle is trusted
   // (min_touching_top_fill).
-  SceneRenderOptions options;
-  options.seed = 39002;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_touching_top_fill = 0.0;
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  const SensedTwice sensed = SenseTouchingWithAndWithout(39002, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   int touching = 0;
   for (const ObjectPose& pose : sensed.report.objects) touching += pose.touching_points > 0;
   EXPECT_GE(touching, 1);
@@ -730,14 +736,9 @@ TEST(PositionSensing, ATopCutByATallerNeighboursShadowIsFlagged) {
   // parts that hide part of its top from the cameras: seen as 47 x 30 mm (fill 0.87), its pose
   // 7.5 mm off and unflagged; the neighbours' points lie 12 mm or more from the cut rectangle
   // in the table plane, but their rays from the cameras cross the plane of its top beside it.
-  SceneRenderOptions options;
-  options.seed = 19027;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_touching_top_fill = 0.0;
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(19027, before));
 }
 
 TEST(PositionSensing, AStripWhoseHullFitsACircleIsNotRound) {
@@ -749,8 +750,7 @@ TEST(PositionSensing, AStripWhoseHullFitsACircleIsNotRound) {
   PositionSensingOptions before = CpuOptions();
   before.pose.min_rim_coverage = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(25025, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   for (const ObjectPose& pose : sensed.report.objects) {
     if (pose.round) {
       EXPECT_LT(pose.circle_radius, 40.0);  // render's discs are at most 75 mm across
@@ -764,28 +764,18 @@ TEST(PositionSensing, APartJoinedWithATallerUnreportedPartIsFlagged) {
   // taller box's walls stretched its rectangle to 85 x 38 mm (fill 0.84): reported unflagged
   // 18 mm off, the taller box missed. 130 of the cluster's points lie more than 5 mm above its
   // top (min_points_above_top).
-  SceneRenderOptions options;
-  options.seed = 59096;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_points_above_top = 0;
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(59096, before));
 }
 
 TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
   // Stress run, `render --seed 29020 --min-gap 0`: a cylinder 68 mm across, 82 mm tall, between
   // touching neighbours, seen only as a 27 x 8 mm piece of its top; reported unflagged 5.6 mm
   // from its centre. No part's top is that narrow (min_whole_top_width_mm).
-  SceneRenderOptions options;
-  options.seed = 29020;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.min_whole_top_width_mm = 0.0;
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(29020, before));
 }
 
 TEST(PositionSensing, APartlySeenRoundTopIsRound) {
@@ -803,15 +793,10 @@ TEST(PositionSensing, ARoundTopLessThanHalfSeenIsRound) {
   // Stress run, `render --seed 9013 --min-gap 0`: a round top 61 mm across, 31 mm tall, seen
   // along only 150 degrees of its rim; the rectangle of what was seen put its centre 12 mm off,
   // unflagged. The robust circle through the seen arc finds the disc's centre.
-  SceneRenderOptions options;
-  options.seed = 9013;
-  options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.pose.min_circle_inlier_fraction = 0.0;
   before.min_touching_top_fill = 0.0;  // the touch rule flags it too: off, to see this rule alone
-  const SensedTwice sensed = SenseWithAndWithout(options, before);
-  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
-  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(9013, before));
 }
 
 TEST(PositionSensing, RecallWithGaussianNoiseOnF) {
