@@ -45,6 +45,10 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "narrower than this (mm): a sliver of a face, not a face. Set it below your "
                   "narrowest part (0 flags none)")
       ->capture_default_str();
+  cmd->add_option("--max-whole-top-length", sensing.max_whole_top_length_mm,
+                  "Flag parts whose top face is longer than this (mm): parts the clustering "
+                  "joined. Set it above your longest part (0 flags none)")
+      ->capture_default_str();
   cmd->add_option("--min-touching-fill", sensing.min_touching_top_fill,
                   "Flag a part beside another (or in a taller one's shadow) unless its top is "
                   "round or fills this fraction of its minimum-area rectangle (0 flags none)")

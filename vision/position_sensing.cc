@@ -118,6 +118,7 @@ std::string PositionSensingOptions::Check() const {
     return "min_touching_top_fill must be in [0, 1]";
   }
   if (!(min_whole_top_width_mm >= 0.0)) return "min_whole_top_width_mm must be >= 0";
+  if (!(max_whole_top_length_mm >= 0.0)) return "max_whole_top_length_mm must be >= 0";
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -271,6 +272,11 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     }
     // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
     if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) pose.merged = true;
+    // A top longer than any part is parts joined.
+    if (options.max_whole_top_length_mm > 0.0 &&
+        pose.top_rectangle.length > options.max_whole_top_length_mm) {
+      pose.merged = true;
+    }
     if (pose.merged) ++report.merged;
   }
   report.timing_ms.pose = MillisecondsSince(start);

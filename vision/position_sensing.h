@@ -103,6 +103,13 @@ struct PositionSensingOptions {
   /// on the stress seeds measured at least 20 mm wide; `--min-gap 0`, seed 29020: a 68 mm round
   /// top seen as a 27 x 8 mm piece, its pose 5.6 mm off. Lower it for thinner parts; 0 disables.
   double min_whole_top_width_mm = 18.0;
+  /// A part whose top face's rectangle is longer than this (mm) is two parts or more that the
+  /// clustering joined: flagged merged. render's longest side is 75 mm
+  /// (SceneRenderOptions::max_side_mm) and every part found within 4 mm of its centre on the
+  /// stress seeds measured at most 81.5 mm long; `--min-gap 0`, seed 79045: two touching parts
+  /// of equal height joined into a 119 x 66 mm top that filled 0.80 of its rectangle, reported
+  /// unflagged 27 mm from either. Raise it for longer parts; 0 disables.
+  double max_whole_top_length_mm = 95.0;
   std::string Check() const;
 };
 

@@ -198,6 +198,9 @@ TEST(PositionSensing, BadOptionsAreRefused) {
   options = CpuOptions();
   options.min_points_above_top = -1;
   EXPECT_NE(options.Check().find("min_points_above_top"), std::string::npos);
+  options = CpuOptions();
+  options.max_whole_top_length_mm = -1.0;
+  EXPECT_NE(options.Check().find("max_whole_top_length_mm"), std::string::npos);
   EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
                std::invalid_argument);
 }
@@ -767,6 +770,16 @@ TEST(PositionSensing, APartJoinedWithATallerUnreportedPartIsFlagged) {
   PositionSensingOptions before = CpuOptions();
   before.min_points_above_top = 0;
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(59096, before));
+}
+
+TEST(PositionSensing, ATopLongerThanAnyPartIsFlagged) {
+  // Stress run, `render --seed 79045 --min-gap 0`: two touching parts of equal height joined
+  // into one 119 x 66 mm top that filled 0.80 of its rectangle, with nothing else beside them:
+  // reported unflagged 27 mm from either. No part render draws is that long
+  // (max_whole_top_length_mm).
+  PositionSensingOptions before = CpuOptions();
+  before.max_whole_top_length_mm = 0.0;
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79045, before));
 }
 
 TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
