@@ -698,7 +698,9 @@ TEST(PositionSensing, TouchingPartsOfUnequalHeightAreSeparated) {
   options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.pose.min_top_level_difference_mm = 0.0;
-  before.min_touching_top_fill = 0.0;  // the touch rule flags it too: off, to see this rule alone
+  // The touch and length rules flag it too: off, to see this rule alone.
+  before.min_touching_top_fill = 0.0;
+  before.max_whole_top_length_mm = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(options, before);
   EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
   EXPECT_GE(sensed.report.top_level_splits, 1);
@@ -727,6 +729,7 @@ TEST(PositionSensing, TwoTouchingPartsJoinedIntoOneAreFlagged) {
   // (min_touching_top_fill).
   PositionSensingOptions before = CpuOptions();
   before.min_touching_top_fill = 0.0;
+  before.max_whole_top_length_mm = 0.0;  // 145 mm long: the length rule flags it too
   const SensedTwice sensed = SenseTouchingWithAndWithout(39002, before);
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   int touching = 0;
@@ -752,6 +755,7 @@ TEST(PositionSensing, AStripWhoseHullFitsACircleIsNotRound) {
   // points cover a twelfth of that rim; the rim-coverage test now holds for the whole-hull fit.
   PositionSensingOptions before = CpuOptions();
   before.pose.min_rim_coverage = 0.0;
+  before.max_whole_top_length_mm = 0.0;  // 158 mm long: the length rule flags it too
   const SensedTwice sensed = SenseWithAndWithout(25025, before);
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   for (const ObjectPose& pose : sensed.report.objects) {
