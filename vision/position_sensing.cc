@@ -16,22 +16,26 @@
 namespace hnnstereo::vision {
 namespace {
 
+// Points of other parts count for ObjectPose::touching_points from this height (mm) up: a
+// part's own base edge and the table lie below it.
+constexpr double kTouchMinHeightMm = 5.0;
+
 double MillisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-
-// ObjectPose::points_above_top: the strong points of its own cluster more than kAboveTopMm above
-// its top. ObjectPose::touching_points: for each pose, the strong points of the other poses' clusters at
-// least `min_height_mm` above the table (a part's own base edge lies at the table) that lie
-// within `reach_mm` of its top face's rectangle in the table plane, or that stand higher than
-// its top and whose ray from either camera centre crosses the plane of its top within
-// `reach_mm` of that rectangle: a taller neighbour that hides part of the top from a camera
-// (`--min-gap 0`, seed 19027: a 61 x 35 mm box seen as 47 x 30, its centre 7.5 mm off, the
-// neighbours' points 12 mm or more from the cut rectangle).
+// ObjectPose::points_above_top: the strong points of a pose's own cluster more than
+// `top_layer_mm` above its top. ObjectPose::touching_points: the strong points of the other
+// poses' clusters, at least `min_height_mm` above the table (a part's own base edge lies at the
+// table), that lie within `reach_mm` of its top face's rectangle in the table plane, or that
+// stand more than `top_layer_mm` above its top and whose ray from either camera centre crosses
+// the plane of its top within `reach_mm` of that rectangle: a taller neighbour that hides part
+// of the top from a camera (`--min-gap 0`, seed 19027: a 61 x 35 mm box seen as 47 x 30, its
+// centre 7.5 mm off, the neighbours' points 12 mm or more from the cut rectangle).
 void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::vector<bool>& weak,
                          const std::vector<Eigen::Vector3d>& camera_centres, double reach_mm,
-                         double min_height_mm, std::vector<ObjectPose>* poses) {
+                         double min_height_mm, double top_layer_mm,
+                         std::vector<ObjectPose>* poses) {
   std::vector<int> owner(points.size(), -1);
   for (std::size_t a = 0; a < poses->size(); ++a) {
     for (int i : (*poses)[a].point_indices) {
@@ -50,11 +54,10 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
              std::abs(d.dot(across)) <= 0.5 * r.width + reach_mm;
     };
     const double top = pose.height_mm;
-    constexpr double kAboveTopMm = 5.0;  // above the top layer (ObjectPoseOptions::top_layer_mm)
     pose.touching_points = 0;
     pose.points_above_top = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
-      if (owner[i] == static_cast<int>(a) && !weak[i] && points[i].z() > top + kAboveTopMm) {
+      if (owner[i] == static_cast<int>(a) && !weak[i] && points[i].z() > top + top_layer_mm) {
         ++pose.points_above_top;
       }
       // Only other parts' points: strong points that joined no part lie all around every part
@@ -64,7 +67,7 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
         continue;
       }
       bool near = near_rectangle(points[i].head<2>());
-      const bool above = points[i].z() > top + kAboveTopMm;
+      const bool above = points[i].z() > top + top_layer_mm;
       for (std::size_t c = 0; !near && above && c < camera_centres.size(); ++c) {
         // Where the ray from camera c through the point meets the plane z = top.
         const Eigen::Vector3d& C = camera_centres[c];
@@ -110,7 +113,9 @@ std::string PositionSensingOptions::Check() const {
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
   if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
-  if (!(min_round_top_fill >= 0.0 && min_round_top_fill <= 1.0)) return "min_round_top_fill must be in [0, 1]";
+  if (!(min_round_top_fill >= 0.0 && min_round_top_fill <= 1.0)) {
+    return "min_round_top_fill must be in [0, 1]";
+  }
   if (!(touch_reach_mm >= 0.0)) return "touch_reach_mm must be >= 0";
   if (touch_min_points < 1) return "touch_min_points must be >= 1";
   if (min_points_above_top < 0) return "min_points_above_top must be >= 0";
@@ -258,7 +263,8 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
   CountTouchingPoints(report.points_in_world, report.weak,
                       {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
-                      options.touch_reach_mm, 5.0, &report.objects);
+                      options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
+                      &report.objects);
   for (ObjectPose& pose : report.objects) {
     // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
     pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
@@ -271,7 +277,9 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       pose.merged = true;
     }
     // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
-    if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) pose.merged = true;
+    if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
+      pose.merged = true;
+    }
     // A top longer than any part is parts joined.
     if (options.max_whole_top_length_mm > 0.0 &&
         pose.top_rectangle.length > options.max_whole_top_length_mm) {
