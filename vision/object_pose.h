@@ -49,6 +49,12 @@ struct ObjectPoseOptions {
   /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
   /// turned 73 degrees).
   double max_trim_yaw_change_deg = 10.0;
+  /// ... and a left-out group comes back when most of its points lie within this distance (mm)
+  /// of the line of one of the kept points' rectangle's sides, beyond the rectangle's end, and
+  /// the opposite side's line holds such a group beyond the same end: the face's two far
+  /// corners, cut off where a plain top's outline breaks (`--min-gap 0`, seed 69083: a 74 x 28
+  /// mm top seen as 62 mm long, its centre 6.1 mm off). 0 never restores.
+  double face_end_line_mm = 1.5;
   /// Round tops: a circle is fitted to the vertices of the top face's convex hull; when their
   /// RMS radial residual is below this fraction of the radius (a rectangle's corners and sides
   /// are 10 % or more off any circle) the part is round and, with centroid_from_rectangle, its
@@ -152,6 +158,11 @@ struct ObjectPoseOptions {
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
   double gap_margin_mm = 3.0;
+  /// ... nor, given the camera centres, a point that either piece's own top hides from one of
+  /// the cameras: every triangulated point was seen by both, so it is a mismatch, not the table
+  /// seen through the gap (`--min-gap 0`, seed 69062: 10 points at 62 mm under a 116 mm top
+  /// kept its far edge apart, the pose 13.8 mm off). false counts them.
+  bool discount_hidden_gap_points = true;
   /// SplitTopLevels: a cluster whose top layer holds two heights is two touching parts the
   /// clustering joined (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall reported as one
   /// part at 68.6 mm between them, 32 mm from either). The layer's heights split in two (Otsu)
@@ -193,9 +204,13 @@ struct ObjectPose {
   double top_roundness = 1.0;
   Eigen::Vector2d circle_centre = Eigen::Vector2d::Zero();  ///< when round
   double circle_radius = 0.0;    ///< when round (mm)
-  /// Touching parts of about equal height that could not be separated: the pose may lie
-  /// between them (OBJECTS.json "merged": true; the robot's safety gate refuses it).
+  /// Touching parts of about equal height that could not be separated, or a top face seen only
+  /// in part (a sliver of it, or cut by the image border): the pose may lie between parts or
+  /// off the part's centre (OBJECTS.json "merged": true; the robot's safety gate refuses it).
   bool merged = false;
+  /// The top face's outline reaches the border of either image (set by SensePositions,
+  /// PositionSensingOptions::image_border_px): part of it may be out of view. Implies merged.
+  bool at_image_border = false;
   /// Points of other parts within PositionSensingOptions::touch_reach_mm of this top face's
   /// rectangle in the table plane (set by SensePositions): a part touching another
   /// (`--min-gap 0`) whose pose the neighbour may have pulled or joined.
@@ -203,6 +218,8 @@ struct ObjectPose {
   /// Strong points of this part's own cluster more than 5 mm above its top (set by
   /// SensePositions): a taller part the clustering joined to it, whose top is not this one.
   int points_above_top = 0;
+  int loose_top_points = 0;
+  int loose_top_weak = 0;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points
@@ -260,12 +277,14 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// (up to options.max_hidden_fraction of their points: mismatches), and, when the larger one is
 /// round, the other lies
 /// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
-/// other parts in the gap between them.
+/// other parts in the gap between them. With `camera_centres` (world, mm), a point in the gap
+/// that either piece's own top hides from one of those cameras is a mismatch and does not count.
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
-                                                  const std::vector<bool>* weak = nullptr);
+                                                  const std::vector<bool>* weak = nullptr,
+                                                  const std::vector<Eigen::Vector3d>* camera_centres = nullptr);
 
 /// Splits each cluster whose top layer holds two heights side by side (touching parts of unequal
 /// height that the clustering joined; see ObjectPoseOptions::min_top_level_difference_mm) into

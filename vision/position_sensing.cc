@@ -77,7 +77,66 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
       }
       if (near) ++pose.touching_points;
     }
+    // Loose points at this top's height just beyond its rectangle (debug measurement).
+    pose.loose_top_points = 0;
+    pose.loose_top_weak = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (owner[i] >= 0 || std::abs(points[i].z() - top) > top_layer_mm) continue;
+      const Eigen::Vector2d d = points[i].head<2>() - r.centre;
+      const double out_along = std::abs(d.dot(along)) - 0.5 * r.length;
+      const double out_across = std::abs(d.dot(across)) - 0.5 * r.width;
+      const double outside = Eigen::Vector2d(std::max(out_along, 0.0), std::max(out_across, 0.0)).norm();
+      if (outside <= 3.0 || outside > 30.0) continue;
+      bool in_other = false;
+      for (std::size_t b = 0; b < poses->size() && !in_other; ++b) {
+        if (b == a) continue;
+        const Rectangle2D& o = (*poses)[b].top_rectangle;
+        const double oa = o.yaw_deg * std::numbers::pi / 180.0;
+        const Eigen::Vector2d ou(std::cos(oa), std::sin(oa)), ov(-ou.y(), ou.x());
+        const Eigen::Vector2d od = points[i].head<2>() - o.centre;
+        in_other = std::abs(od.dot(ou)) <= 0.5 * o.length + 3.0 && std::abs(od.dot(ov)) <= 0.5 * o.width + 3.0;
+      }
+      if (in_other) continue;
+      if (weak[i]) ++pose.loose_top_weak; else ++pose.loose_top_points;
+    }
   }
+}
+
+// Whether the outline of `pose`'s top face - its rectangle's corners, or 32 points of its
+// circle when round - at its height projects within `margin_px` of the border of either image
+// (of `image_size`), or beyond it.
+bool OutlineNearImageBorder(const ObjectPose& pose, const calib::StereoCalibration& calibration,
+                            const cv::Size& image_size, double margin_px) {
+  std::vector<Eigen::Vector2d> outline;
+  if (pose.round) {
+    constexpr int kCirclePoints = 32;
+    for (int k = 0; k < kCirclePoints; ++k) {
+      const double angle = 2.0 * std::numbers::pi * k / kCirclePoints;
+      outline.push_back(pose.circle_centre +
+                        pose.circle_radius * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+    }
+  } else {
+    const Rectangle2D& rect = pose.top_rectangle;
+    const double yaw = rect.yaw_deg * std::numbers::pi / 180.0;
+    const Eigen::Vector2d along = 0.5 * rect.length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
+    const Eigen::Vector2d across = 0.5 * rect.width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
+    for (int a = -1; a <= 1; a += 2) {
+      for (int b = -1; b <= 1; b += 2) outline.push_back(rect.centre + a * along + b * across);
+    }
+  }
+  for (const calib::ProjectionMatrix* P : {&calibration.P1, &calibration.P2}) {
+    for (const Eigen::Vector2d& xy : outline) {
+      const Eigen::Vector3d x = *P * Eigen::Vector4d(xy.x(), xy.y(), pose.height_mm, 1.0);
+      if (!(x.z() > 0.0)) return true;  // behind the camera: not in view
+      const double u = x.x() / x.z(), v = x.y() / x.z();
+      // Pixel centres run from 0 to cols - 1 (OpenCV convention).
+      if (!(u >= margin_px && v >= margin_px && u <= image_size.width - 1 - margin_px &&
+            v <= image_size.height - 1 - margin_px)) {
+        return true;
+      }
+    }
+  }
+  return false;
 }
 
 }  // namespace
@@ -124,6 +183,9 @@ std::string PositionSensingOptions::Check() const {
   }
   if (!(min_whole_top_width_mm >= 0.0)) return "min_whole_top_width_mm must be >= 0";
   if (!(max_whole_top_length_mm >= 0.0)) return "max_whole_top_length_mm must be >= 0";
+  if (!(image_border_px >= 0.0 && std::isfinite(image_border_px))) {
+    return "image_border_px must be >= 0";
+  }
   if (!(max_reprojection_error_px > 0.0)) {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
@@ -227,9 +289,11 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   if (options.clustering == ClusteringMethod::kGrid) {
     if (options.merge_top_face_islands) {
+      const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
+                                                           calib::CameraCentre(calibration.P2)};
       report.clustering.clusters = MergeTopFaceIslands(
           report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
-          &report.weak);
+          &report.weak, &camera_centres);
     }
     // Touching parts of unequal height the grid joined (never a pose between them).
     report.clustering.clusters = SplitTopLevels(report.points_in_world, report.clustering.clusters,
@@ -285,6 +349,12 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
         pose.top_rectangle.length > options.max_whole_top_length_mm) {
       pose.merged = true;
     }
+    // A top cut by the field of view is a piece of a face.
+    if (options.image_border_px > 0.0 && !left_grey.empty()) {
+      pose.at_image_border =
+          OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
+      if (pose.at_image_border) pose.merged = true;
+    }
     if (pose.merged) ++report.merged;
   }
   report.timing_ms.pose = MillisecondsSince(start);
@@ -331,7 +401,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"top_fill", pose.top_fill},
          {"merged", pose.merged},
          {"touching_points", pose.touching_points},
-         {"points_above_top", pose.points_above_top}});
+         {"points_above_top", pose.points_above_top},
+         {"at_image_border", pose.at_image_border}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

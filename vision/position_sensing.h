@@ -110,6 +110,12 @@ struct PositionSensingOptions {
   /// of equal height joined into a 119 x 66 mm top that filled 0.80 of its rectangle, reported
   /// unflagged 27 mm from either. Raise it for longer parts; 0 disables.
   double max_whole_top_length_mm = 95.0;
+  /// A part whose top face's outline (its rectangle's corners, or its circle when round) at
+  /// its height projects within this many pixels of either image's border, or beyond it, may be
+  /// cut by the field of view: its pose is the centre of the piece in view. Flagged merged and
+  /// ObjectPose::at_image_border. `--min-gap 0`, seed 69062: a 73 x 61 mm box's top cut by the
+  /// bottom border of both images, seen as 61 x 47 mm, its pose 13.8 mm off. 0 disables.
+  double image_border_px = 4.0;
   std::string Check() const;
 };
 

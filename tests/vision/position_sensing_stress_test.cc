@@ -183,6 +183,8 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   sensing.min_strong_points = std::stoi(Env("HNNSTEREO_STRESS_MIN_STRONG", "60"));
   if (sensing.min_strong_points < 60) sensing.min_top_fraction = 0.0;
   if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
+  sensing.pose.face_end_line_mm =
+      std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
   const std::string only_seeds = "," + Env("HNNSTEREO_STRESS_SEEDS", "") + ",";
   std::map<std::string, Bin> bins;
   const auto start = std::chrono::steady_clock::now();
@@ -279,7 +281,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
-        std::printf("above %d ", pose.points_above_top);
+        std::printf("loose %d weak %d above %d ", pose.loose_top_points, pose.loose_top_weak, pose.points_above_top);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

@@ -201,6 +201,12 @@ TEST(PositionSensing, BadOptionsAreRefused) {
   options = CpuOptions();
   options.max_whole_top_length_mm = -1.0;
   EXPECT_NE(options.Check().find("max_whole_top_length_mm"), std::string::npos);
+  options = CpuOptions();
+  options.image_border_px = -1.0;
+  EXPECT_NE(options.Check().find("image_border_px"), std::string::npos);
+  options = CpuOptions();
+  options.pose.face_end_line_mm = -1.0;
+  EXPECT_NE(options.Check().find("face_end_line_mm"), std::string::npos);
   EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
                std::invalid_argument);
 }
@@ -698,9 +704,10 @@ TEST(PositionSensing, TouchingPartsOfUnequalHeightAreSeparated) {
   options.min_gap_mm = 0.0;
   PositionSensingOptions before = CpuOptions();
   before.pose.min_top_level_difference_mm = 0.0;
-  // The touch and length rules flag it too: off, to see this rule alone.
+  // The touch, length and image-border rules flag it too: off, to see this rule alone.
   before.min_touching_top_fill = 0.0;
   before.max_whole_top_length_mm = 0.0;
+  before.image_border_px = 0.0;
   const SensedTwice sensed = SenseWithAndWithout(options, before);
   EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
   EXPECT_GE(sensed.report.top_level_splits, 1);
@@ -784,6 +791,62 @@ TEST(PositionSensing, ATopLongerThanAnyPartIsFlagged) {
   PositionSensingOptions before = CpuOptions();
   before.max_whole_top_length_mm = 0.0;
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79045, before));
+}
+
+TEST(PositionSensing, AFaceEndCutOffWithTheSmallGroupsComesBack) {
+  // Stress run, `render --seed 69083 --min-gap 0`: a 74 x 28 mm box, 146 mm tall, nothing
+  // beside it; its end edges lie along the epipolar lines (weak), so its far corners were two
+  // groups of 12 and 10 points beside a chain of 135, left out as mismatches: seen 62 mm long,
+  // reported unflagged 6.1 mm off. Both corners lie on the lines of the sides
+  // (ObjectPoseOptions::face_end_line_mm).
+  PositionSensingOptions before = CpuOptions();
+  before.pose.face_end_line_mm = 0.0;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(69083, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 1.0);
+}
+
+TEST(PositionSensing, AMismatchHiddenUnderATopDoesNotSplitIt) {
+  // Stress run, `render --seed 69062 --min-gap 0`: a plain-looking 73 x 61 mm top, 116 mm tall,
+  // fell apart into its far edge (84 points) and the rest; 10 mismatches at 62 mm "in the gap"
+  // between them kept the two apart: reported unflagged 13.8 mm off. The larger piece's own
+  // top hides those points from the right camera
+  // (ObjectPoseOptions::discount_hidden_gap_points).
+  PositionSensingOptions before = CpuOptions();
+  before.pose.discount_hidden_gap_points = false;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(69062, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+  for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 1.0);
+}
+
+TEST(PositionSensing, ATopCutByTheImageBorderIsFlagged) {
+  // `render --seed 69062 --min-gap 0` with both images cut to their top 430 rows (P unchanged):
+  // the left image shows only part of the 116 mm box's top (rows 388-468 in full), the right
+  // all of it, so only the piece in view is matched, and its centre is far from the part's.
+  // The top's outline reaches the left image's border (PositionSensingOptions::image_border_px):
+  // flagged merged and at_image_border.
+  SceneRenderOptions options;
+  options.seed = 69062;
+  options.min_gap_mm = 0.0;
+  const RenderedScene scene = RenderScene(options);
+  const cv::Rect kept(0, 0, scene.left.cols, 430);
+  const cv::Mat left = scene.left(kept).clone(), right = scene.right(kept).clone();
+  PositionSensingOptions before = CpuOptions();
+  before.image_border_px = 0.0;
+  const MatchReport match = MatchStereo(left, right, &scene.cameras, before.matcher, nullptr);
+  const PositionSensingReport with = SensePositionsFromMatches(match, scene.cameras, CpuOptions(), left);
+  const PositionSensingReport without = SensePositionsFromMatches(match, scene.cameras, before, left);
+  EXPECT_EQ(FarUnflaggedPoses(with, scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(without, scene), 1) << "the failure the rule exists for";
+  int at_border = 0;
+  for (const ObjectPose& pose : with.objects) {
+    if (pose.at_image_border) {
+      ++at_border;
+      EXPECT_TRUE(pose.merged);
+    }
+  }
+  EXPECT_GE(at_border, 1);
+  for (const ObjectPose& pose : without.objects) EXPECT_FALSE(pose.at_image_border);
 }
 
 TEST(PositionSensing, ASliverOfATopFaceIsFlagged) {
