@@ -77,28 +77,6 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
       }
       if (near) ++pose.touching_points;
     }
-    // Loose points at this top's height just beyond its rectangle (debug measurement).
-    pose.loose_top_points = 0;
-    pose.loose_top_weak = 0;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      if (owner[i] >= 0 || std::abs(points[i].z() - top) > top_layer_mm) continue;
-      const Eigen::Vector2d d = points[i].head<2>() - r.centre;
-      const double out_along = std::abs(d.dot(along)) - 0.5 * r.length;
-      const double out_across = std::abs(d.dot(across)) - 0.5 * r.width;
-      const double outside = Eigen::Vector2d(std::max(out_along, 0.0), std::max(out_across, 0.0)).norm();
-      if (outside <= 3.0 || outside > 30.0) continue;
-      bool in_other = false;
-      for (std::size_t b = 0; b < poses->size() && !in_other; ++b) {
-        if (b == a) continue;
-        const Rectangle2D& o = (*poses)[b].top_rectangle;
-        const double oa = o.yaw_deg * std::numbers::pi / 180.0;
-        const Eigen::Vector2d ou(std::cos(oa), std::sin(oa)), ov(-ou.y(), ou.x());
-        const Eigen::Vector2d od = points[i].head<2>() - o.centre;
-        in_other = std::abs(od.dot(ou)) <= 0.5 * o.length + 3.0 && std::abs(od.dot(ov)) <= 0.5 * o.width + 3.0;
-      }
-      if (in_other) continue;
-      if (weak[i]) ++pose.loose_top_weak; else ++pose.loose_top_points;
-    }
   }
 }
 
