@@ -289,11 +289,11 @@ namespace {
 // most of its points lie within `line_mm` of the line of a side of the kept points' rectangle,
 // beyond that rectangle's end, and the opposite side's line holds such a group beyond the same
 // end: a face's end has two corners, a stray chain at the top height (a neighbour's edge in
-// line with one side, seed 17136) has one; groups of fewer than min_top_group_points points
-// never come back. Hand-written: no library fits this.
+// line with one side, seed 17136) has one. The two must reach equally far (within 3 mm): a
+// face's end is straight. Hand-written: no library fits this.
 std::vector<Eigen::Vector2d> RestoreFaceEnds(std::vector<Eigen::Vector2d> kept,
                                              const std::vector<std::vector<Eigen::Vector2d>>& groups,
-                                             double line_mm, int min_group_points) {
+                                             double line_mm) {
   if (line_mm <= 0.0 || groups.empty() || kept.size() < 3) return kept;
   const Rectangle2D rect = MinAreaRectangle(kept);
   const double yaw = rect.yaw_deg * std::numbers::pi / 180.0;
@@ -309,25 +309,28 @@ std::vector<Eigen::Vector2d> RestoreFaceEnds(std::vector<Eigen::Vector2d> kept,
     const double half_side = 0.5 * (axis == 0 ? rect.width : rect.length);
     for (int end = -1; end <= 1; end += 2) {
       std::vector<std::size_t> on_side[2];
+      double reach[2] = {0.0, 0.0};  // furthest point beyond the end on each side's line
       for (std::size_t g = 0; g < groups.size(); ++g) {
-        // A corner is a piece of two edges; a point or two there are mismatches as likely.
-        if (static_cast<int>(groups[g].size()) < min_group_points) continue;
         int votes[2] = {0, 0};
-        bool beyond = false;
+        double furthest = 0.0;
         for (const Eigen::Vector2d& p : groups[g]) {
           const Eigen::Vector2d d = p - rect.centre;
-          if (end * d.dot(end_axis) > half_end + line_mm) beyond = true;
+          furthest = std::max(furthest, end * d.dot(end_axis) - half_end);
           const double s = d.dot(side_axis);
           if (std::abs(s + half_side) <= line_mm) ++votes[0];
           if (std::abs(s - half_side) <= line_mm) ++votes[1];
         }
         for (int side = 0; side < 2; ++side) {
-          if (beyond && 2 * votes[side] > static_cast<int>(groups[g].size())) {
+          if (furthest > line_mm && 2 * votes[side] > static_cast<int>(groups[g].size())) {
             on_side[side].push_back(g);
+            reach[side] = std::max(reach[side], furthest);
           }
         }
       }
-      if (!on_side[0].empty() && !on_side[1].empty()) {
+      // The two corners of one end reach equally far (a face's end is straight).
+      constexpr double kCornerReachToleranceMm = 3.0;
+      if (!on_side[0].empty() && !on_side[1].empty() &&
+          std::abs(reach[0] - reach[1]) <= kCornerReachToleranceMm) {
         for (const auto& side : on_side) restore.insert(restore.end(), side.begin(), side.end());
       }
     }
@@ -423,8 +426,7 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
             options.max_trim_yaw_change_deg) {
       std::vector<std::vector<Eigen::Vector2d>> groups;
       for (auto& [group_root, group] : dropped) groups.push_back(std::move(group));
-      top_xy = RestoreFaceEnds(std::move(kept), groups, options.face_end_line_mm,
-                               options.min_top_group_points);
+      top_xy = RestoreFaceEnds(std::move(kept), groups, options.face_end_line_mm);
     }
   }
   pose.top_rectangle = MinAreaRectangle(top_xy);
