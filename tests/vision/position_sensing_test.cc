@@ -805,7 +805,7 @@ TEST(PositionSensing, AFaceEndCutOffWithTheSmallGroupsComesBack) {
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 1.0);
   // `render --seed 79061 --min-gap 0`: a 68 x 29 mm top seen 57 mm long (4.7 mm off) whose far
-X
+  // corners were groups of 3 and 2 points, both about 10 mm past the kept points' end.
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79061, before));
 }
 
