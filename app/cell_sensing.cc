@@ -53,6 +53,10 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "Flag a part beside another (or in a taller one's shadow) unless its top is "
                   "round or fills this fraction of its minimum-area rectangle (0 flags none)")
       ->capture_default_str();
+  cmd->add_option("--image-border", sensing.image_border_px,
+                  "Flag parts whose top face reaches within this many pixels of either image's "
+                  "border: part of it may be out of view (\"at_image_border\": true; 0 flags none)")
+      ->capture_default_str();
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();

@@ -604,17 +604,15 @@ int PointsHiddenUnderJointTop(const std::vector<Eigen::Vector3d>& points_in_worl
 // Points (not in clusters a or b, not weak) seen more than 2 top layers below or above the
 // joint top in the gap between two pieces: inside the hull of their joint top face, more than
 // gap_margin_mm inside its outline (the part's sides and base edge lie under the outline of its
-// face), and not under one piece's own top (a mismatch there says nothing about the gap), in
-// the table plane or, with `camera_centres`, along the ray to either camera. Two parts standing
-// apart show the table, a lower part, or their own sides facing each other between them; the
-// pieces of one face hide all of that.
+// face), and not under one piece's own top (a mismatch there says nothing about the gap). Two
+// parts standing apart show the table, a lower part, or their own sides facing each other
+// between them; the pieces of one face hide all of that.
 int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
                        const std::vector<int>& cluster_of_point, int a, int b,
                        const std::vector<Eigen::Vector2d>& joint_hull,
                        const std::vector<Eigen::Vector2d>& hull_a,
                        const std::vector<Eigen::Vector2d>& hull_b, double height,
-                       const ObjectPoseOptions& options, const std::vector<bool>* weak,
-                       const std::vector<Eigen::Vector3d>* camera_centres) {
+                       const ObjectPoseOptions& options, const std::vector<bool>* weak) {
   if (joint_hull.size() < 3) return 0;
   int count = 0;
   for (std::size_t i = 0; i < points_in_world.size(); ++i) {
@@ -624,23 +622,7 @@ int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
         DistanceToPolygonOutline(joint_hull, xy) <= options.gap_margin_mm) {
       continue;
     }
-    if (InsideConvexPolygon(hull_a, xy) || InsideConvexPolygon(hull_b, xy)) continue;
-    // A point is seen from both cameras or it is not matched: one that either piece's own top
-    // hides from a camera is a mismatch, not the table seen through the gap (`--min-gap 0`,
-    // seed 69062: 10 points at 62 mm under a 116 mm top, hidden by its larger piece from the
-    // right camera, kept its far edge apart; the pose 13.8 mm off).
-    bool hidden_by_a_piece = false;
-    for (std::size_t c = 0; camera_centres != nullptr && c < camera_centres->size(); ++c) {
-      const Eigen::Vector3d& C = (*camera_centres)[c];
-      const Eigen::Vector3d& P = points_in_world[i];
-      if (!(C.z() > height && P.z() < height)) continue;
-      const Eigen::Vector2d crossing = (C + (height - C.z()) / (P.z() - C.z()) * (P - C)).head<2>();
-      for (const auto* hull : {&hull_a, &hull_b}) {
-        // A visible point's ray never enters a solid top: no margin but the points' noise.
-        if (InsideConvexPolygon(*hull, crossing)) hidden_by_a_piece = true;
-      }
-    }
-    if (!hidden_by_a_piece) ++count;
+    if (!InsideConvexPolygon(hull_a, xy) && !InsideConvexPolygon(hull_b, xy)) ++count;
   }
   return count;
 }
@@ -812,8 +794,7 @@ bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options, int* merges,
-                                                  const std::vector<bool>* weak,
-                                                  const std::vector<Eigen::Vector3d>* camera_centres) {
+                                                  const std::vector<bool>* weak) {
   if (weak != nullptr && weak->size() != points_in_world.size()) {
     throw std::invalid_argument("MergeTopFaceIslands: weak must have one flag per point");
   }
@@ -870,9 +851,7 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                       static_cast<double>(clusters[small].size() + clusters[large].size()) ||
               PointsSeenInTheGap(points_in_world, cluster_of_point, static_cast<int>(small),
                                  static_cast<int>(large), joint, top_hulls[small], top_hulls[large],
-                                 height, options, weak,
-                                 options.discount_hidden_gap_points ? camera_centres : nullptr) >
-                  options.max_gap_points) {
+                                 height, options, weak) > options.max_gap_points) {
             continue;
           }
         }

@@ -158,11 +158,6 @@ struct ObjectPoseOptions {
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
   double gap_margin_mm = 3.0;
-  /// ... nor, given the camera centres, a point that either piece's own top hides from one of
-  /// the cameras: every triangulated point was seen by both, so it is a mismatch, not the table
-  /// seen through the gap (`--min-gap 0`, seed 69062: 10 points at 62 mm under a 116 mm top
-  /// kept its far edge apart, the pose 13.8 mm off). false counts them.
-  bool discount_hidden_gap_points = true;
   /// SplitTopLevels: a cluster whose top layer holds two heights is two touching parts the
   /// clustering joined (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall reported as one
   /// part at 68.6 mm between them, 32 mm from either). The layer's heights split in two (Otsu)
@@ -211,6 +206,10 @@ struct ObjectPose {
   /// The top face's outline reaches the border of either image (set by SensePositions,
   /// PositionSensingOptions::image_border_px): part of it may be out of view. Implies merged.
   bool at_image_border = false;
+  /// A line of points at this top's height beside it was dropped as too narrow to be a part
+  /// (set by SensePositions, PositionSensingOptions::left_out_piece_reach_mm): it may be a
+  /// piece of this top. Implies merged.
+  bool piece_left_out = false;
   /// Points of other parts within PositionSensingOptions::touch_reach_mm of this top face's
   /// rectangle in the table plane (set by SensePositions): a part touching another
   /// (`--min-gap 0`) whose pose the neighbour may have pulled or joined.
@@ -275,14 +274,12 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// (up to options.max_hidden_fraction of their points: mismatches), and, when the larger one is
 /// round, the other lies
 /// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
-/// other parts in the gap between them. With `camera_centres` (world, mm), a point in the gap
-/// that either piece's own top hides from one of those cameras is a mismatch and does not count.
+/// other parts in the gap between them.
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
-                                                  const std::vector<bool>* weak = nullptr,
-                                                  const std::vector<Eigen::Vector3d>* camera_centres = nullptr);
+                                                  const std::vector<bool>* weak = nullptr);
 
 /// Splits each cluster whose top layer holds two heights side by side (touching parts of unequal
 /// height that the clustering joined; see ObjectPoseOptions::min_top_level_difference_mm) into

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <cmath>
@@ -78,6 +79,31 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
       if (near) ++pose.touching_points;
     }
   }
+}
+
+// Distance (mm) between two rectangles in the table plane: 0 when they overlap, else the
+// smallest distance from a corner of one to the other (rectangles are convex).
+double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
+  const auto corners = [](const Rectangle2D& r) {
+    const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
+    const Eigen::Vector2d along = 0.5 * r.length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
+    const Eigen::Vector2d across = 0.5 * r.width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
+    return std::vector<Eigen::Vector2d>{r.centre - along - across, r.centre + along - across,
+                                        r.centre + along + across, r.centre - along + across};
+  };
+  // Distance from a point to a rectangle (0 inside).
+  const auto to = [](const Rectangle2D& r, const Eigen::Vector2d& p) {
+    const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
+    const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+    const Eigen::Vector2d d = p - r.centre;
+    return Eigen::Vector2d(std::max(std::abs(d.dot(u)) - 0.5 * r.length, 0.0),
+                           std::max(std::abs(d.dot(v)) - 0.5 * r.width, 0.0))
+        .norm();
+  };
+  double gap = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector2d& p : corners(a)) gap = std::min(gap, to(b, p));
+  for (const Eigen::Vector2d& p : corners(b)) gap = std::min(gap, to(a, p));
+  return gap;
 }
 
 // Whether the outline of `pose`'s top face - its rectangle's corners, or 32 points of its
@@ -161,6 +187,8 @@ std::string PositionSensingOptions::Check() const {
   }
   if (!(min_whole_top_width_mm >= 0.0)) return "min_whole_top_width_mm must be >= 0";
   if (!(max_whole_top_length_mm >= 0.0)) return "max_whole_top_length_mm must be >= 0";
+  if (!(left_out_piece_reach_mm >= 0.0)) return "left_out_piece_reach_mm must be >= 0";
+  if (!(max_round_top_roundness >= 0.0)) return "max_round_top_roundness must be >= 0";
   if (!(image_border_px >= 0.0 && std::isfinite(image_border_px))) {
     return "image_border_px must be >= 0";
   }
@@ -267,11 +295,9 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   if (options.clustering == ClusteringMethod::kGrid) {
     if (options.merge_top_face_islands) {
-      const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
-                                                           calib::CameraCentre(calibration.P2)};
       report.clustering.clusters = MergeTopFaceIslands(
           report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
-          &report.weak, &camera_centres);
+          &report.weak);
     }
     // Touching parts of unequal height the grid joined (never a pose between them).
     report.clustering.clusters = SplitTopLevels(report.points_in_world, report.clustering.clusters,
@@ -283,16 +309,18 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       }
     }
   }
+  std::vector<ObjectPose> narrow_pieces;  // dropped by min_top_width_mm
   std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
     bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
     if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
-      const ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
+      ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
       if (pose.top_points < options.min_top_fraction * pose.points) {
         small = true;
         ++report.without_top_face;
       } else if (pose.top_rectangle.width < options.min_top_width_mm) {
         small = true;
         ++report.narrow_top_face;
+        narrow_pieces.push_back(std::move(pose));
       }
     }
     if (small) {
@@ -310,7 +338,8 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   for (ObjectPose& pose : report.objects) {
     // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
     pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
-                  (pose.top_roundness > 0.06 || pose.top_fill < options.min_round_top_fill);
+                  (pose.top_roundness > options.max_round_top_roundness ||
+                   pose.top_fill < options.min_round_top_fill);
     // Beside a neighbour, only a full rectangle (or a round top) is trusted.
     const bool touching =
         pose.touching_points >= options.touch_min_points ||
@@ -326,6 +355,16 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     if (options.max_whole_top_length_mm > 0.0 &&
         pose.top_rectangle.length > options.max_whole_top_length_mm) {
       pose.merged = true;
+    }
+    // A line of points at this top's height beside it, left out as too narrow to be a part,
+    // may be a piece of this top the island merge did not join.
+    for (const ObjectPose& piece : narrow_pieces) {
+      if (options.left_out_piece_reach_mm > 0.0 &&
+          std::abs(piece.height_mm - pose.height_mm) <= pose_options.top_layer_mm &&
+          RectangleGap(piece.top_rectangle, pose.top_rectangle) <= options.left_out_piece_reach_mm) {
+        pose.piece_left_out = true;
+        pose.merged = true;
+      }
     }
     // A top cut by the field of view is a piece of a face.
     if (options.image_border_px > 0.0 && !left_grey.empty()) {
@@ -380,7 +419,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"merged", pose.merged},
          {"touching_points", pose.touching_points},
          {"points_above_top", pose.points_above_top},
-         {"at_image_border", pose.at_image_border}});
+         {"at_image_border", pose.at_image_border},
+         {"piece_left_out", pose.piece_left_out}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

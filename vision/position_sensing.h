@@ -62,10 +62,15 @@ struct PositionSensingOptions {
   /// A part whose top face is not round and fills less than this fraction of its minimum-area
   /// rectangle (ObjectPose::top_fill) is touching parts the clustering could not separate: it is
   /// reported with `merged` set (OBJECTS.json "merged": true), and the robot's safety gate
-  /// refuses it, since its pose may lie between two parts. Tops whose hull fits a circle to 6 %
-  /// of its radius (ObjectPose::top_roundness: a disc fills only pi / 4 of its square) are never
-  /// flagged. 0 flags none.
+  /// refuses it, since its pose may lie between two parts. Tops whose hull fits a circle to
+  /// max_round_top_roundness of its radius (ObjectPose::top_roundness: a disc fills only pi / 4
+  /// of its square) are not flagged by this rule. 0 flags none.
   double min_top_fill = 0.8;
+  /// ... that circle's RMS residual over its radius: a disc's rim scatters about 0.5 mm, 1-2 %
+  /// of its radius. It was 0.06: on the default and gap0 stress logs of 13000, 35000, 39000 and
+  /// 99000 every top it exempted was a box (0.037-0.057; gap0 99051: a 73 x 34 mm box seen as
+  /// 60 x 34, fill 0.76, roundness 0.041, reported unflagged 7.1 mm off).
+  double max_round_top_roundness = 0.03;
   /// ... unless they fill less than this fraction of their rectangle: any piece of a disc (a
   /// circular segment) fills at least 2/3 of its rectangle, while a few hull vertices of a
   /// partial outline fit some circle by chance (`--min-gap 0`, seed 9029: a 72 x 27 mm piece
@@ -116,6 +121,12 @@ struct PositionSensingOptions {
   /// ObjectPose::at_image_border. `--min-gap 0`, seed 69062: a 73 x 61 mm box's top cut by the
   /// bottom border of both images, seen as 61 x 47 mm, its pose 13.8 mm off. 0 disables.
   double image_border_px = 4.0;
+  /// A part beside a line of points at its top's height (within top_layer_mm) that was dropped
+  /// as narrower than min_top_width_mm, at most this far (mm) from its top's rectangle, may be
+  /// missing that piece of its top: a plain top's far edge the island merge did not join
+  /// (`--min-gap 0`, seed 69062: a 73 x 61 mm top's far edge, 84 points 27 mm away, left out;
+  /// the pose 13.8 mm off). Flagged merged and ObjectPose::piece_left_out. 0 disables.
+  double left_out_piece_reach_mm = 30.0;
   std::string Check() const;
 };
 
