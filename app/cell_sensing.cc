@@ -53,6 +53,11 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "Flag a part beside another (or in a taller one's shadow) unless its top is "
                   "round or fills this fraction of its minimum-area rectangle (0 flags none)")
       ->capture_default_str();
+  cmd->add_option("--min-taller-touching", sensing.min_taller_touching_points,
+                  "Flag a part (not round) with this many points of taller parts beside it: "
+                  "their walls may hide a strip of its top. Pick tallest first and it is seen "
+                  "whole later (0 flags none)")
+      ->capture_default_str();
   cmd->add_option("--image-border", sensing.image_border_px,
                   "Flag parts whose top face reaches within this many pixels of either image's "
                   "border: part of it may be out of view (\"at_image_border\": true; 0 flags none)")

@@ -217,6 +217,10 @@ struct ObjectPose {
   /// Strong points of this part's own cluster more than 5 mm above its top (set by
   /// SensePositions): a taller part the clustering joined to it, whose top is not this one.
   int points_above_top = 0;
+  /// Strong points of other parts within PositionSensingOptions::touch_reach_mm of this top
+  /// face's rectangle in the table plane and more than top_layer_mm above its top (set by
+  /// SensePositions): a taller part touching this one.
+  int taller_touching_points = 0;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points

@@ -33,6 +33,8 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 // the plane of its top within `reach_mm` of that rectangle: a taller neighbour that hides part
 // of the top from a camera (`--min-gap 0`, seed 19027: a 61 x 35 mm box seen as 47 x 30, its
 // centre 7.5 mm off, the neighbours' points 12 mm or more from the cut rectangle).
+// ObjectPose::taller_touching_points: those of the former (within `reach_mm` in the table
+// plane) that stand more than `top_layer_mm` above its top.
 void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::vector<bool>& weak,
                          const std::vector<Eigen::Vector3d>& camera_centres, double reach_mm,
                          double min_height_mm, double top_layer_mm,
@@ -57,6 +59,7 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
     const double top = pose.height_mm;
     pose.touching_points = 0;
     pose.points_above_top = 0;
+    pose.taller_touching_points = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (owner[i] == static_cast<int>(a) && !weak[i] && points[i].z() > top + top_layer_mm) {
         ++pose.points_above_top;
@@ -68,6 +71,7 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
         continue;
       }
       bool near = near_rectangle(points[i].head<2>());
+      const bool beside = near;  // in the table plane, not by a ray
       const bool above = points[i].z() > top + top_layer_mm;
       for (std::size_t c = 0; !near && above && c < camera_centres.size(); ++c) {
         // Where the ray from camera c through the point meets the plane z = top.
@@ -77,6 +81,7 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
         near = near_rectangle((C + t * (points[i] - C)).head<2>());
       }
       if (near) ++pose.touching_points;
+      if (beside && above) ++pose.taller_touching_points;
     }
   }
 }
@@ -189,6 +194,7 @@ std::string PositionSensingOptions::Check() const {
   if (!(max_whole_top_length_mm >= 0.0)) return "max_whole_top_length_mm must be >= 0";
   if (!(left_out_piece_reach_mm >= 0.0)) return "left_out_piece_reach_mm must be >= 0";
   if (!(max_round_top_roundness >= 0.0)) return "max_round_top_roundness must be >= 0";
+  if (min_taller_touching_points < 0) return "min_taller_touching_points must be >= 0";
   if (!(image_border_px >= 0.0 && std::isfinite(image_border_px))) {
     return "image_border_px must be >= 0";
   }
@@ -347,6 +353,12 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
       pose.merged = true;
     }
+    // A taller part touching a box hides a strip of its top from the camera on its side; cut
+    // straight, the rest is still a full rectangle.
+    if (!pose.round && options.min_taller_touching_points > 0 &&
+        pose.taller_touching_points >= options.min_taller_touching_points) {
+      pose.merged = true;
+    }
     // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
     if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
       pose.merged = true;
@@ -419,6 +431,7 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"merged", pose.merged},
          {"touching_points", pose.touching_points},
          {"points_above_top", pose.points_above_top},
+         {"taller_touching_points", pose.taller_touching_points},
          {"at_image_border", pose.at_image_border},
          {"piece_left_out", pose.piece_left_out}});
     if (pose.round) {

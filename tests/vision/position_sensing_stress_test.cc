@@ -281,7 +281,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
-        std::printf("above %d ", pose.points_above_top);
+        std::printf("taller %d above %d ", pose.taller_touching_points, pose.points_above_top);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

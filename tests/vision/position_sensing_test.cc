@@ -211,6 +211,9 @@ TEST(PositionSensing, BadOptionsAreRefused) {
   options.max_round_top_roundness = -1.0;
   EXPECT_NE(options.Check().find("max_round_top_roundness"), std::string::npos);
   options = CpuOptions();
+  options.min_taller_touching_points = -1;
+  EXPECT_NE(options.Check().find("min_taller_touching_points"), std::string::npos);
+  options = CpuOptions();
   options.pose.face_end_line_mm = -1.0;
   EXPECT_NE(options.Check().find("face_end_line_mm"), std::string::npos);
   EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
@@ -829,6 +832,22 @@ TEST(PositionSensing, APartBesideAPieceOfItsTopLeftOutIsFlagged) {
   for (const ObjectPose& pose : sensed.report.objects) flagged = flagged || pose.piece_left_out;
   EXPECT_TRUE(flagged);
   EXPECT_GE(sensed.report.narrow_top_face, 1);
+}
+
+TEST(PositionSensing, ABoxTopCutStraightByATallerNeighbourIsFlagged) {
+  // Stress runs, `render --seed 39001 --min-gap 0` and `--seed 119031 --min-gap 0`: a 67 x 47
+  // mm box, 87 mm tall, touching a 114 mm one, seen as 58 x 48 (fill 0.96, 4.6 mm off); a 68 x
+  // 43 mm box, 35 mm tall, beside a 131 mm one, seen as 57 x 26 (fill 0.92, 9.2 mm off). The
+  // taller neighbour hid a straight strip of each top from one camera: what is left is a full
+  // rectangle, so the fill rule of touching parts passes it
+  // (PositionSensingOptions::min_taller_touching_points).
+  PositionSensingOptions before = CpuOptions();
+  before.min_taller_touching_points = 0;
+  for (const std::uint64_t seed : {39001u, 119031u}) {
+    SCOPED_TRACE(seed);
+    const SensedTwice sensed = SenseTouchingWithAndWithout(seed, before);
+    ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+  }
 }
 
 TEST(PositionSensing, ABoxTopWhoseHullFitsACircleLooselyIsFlagged) {
