@@ -327,6 +327,12 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
         small = true;
         ++report.narrow_top_face;
         narrow_pieces.push_back(std::move(pose));
+      } else if (options.max_whole_top_length_mm > 0.0 &&
+                 pose.top_rectangle.length > options.max_whole_top_length_mm &&
+                 pose.top_rectangle.width < options.min_whole_top_width_mm) {
+        // Longer than any part and narrower than any: a line across parts, not a top.
+        small = true;
+        ++report.narrow_top_face;
       }
     }
     if (small) {

@@ -125,6 +125,11 @@ struct PositionSensingOptions {
   /// stress seeds measured at most 81.5 mm long; `--min-gap 0`, seed 79045: two touching parts
   /// of equal height joined into a 119 x 66 mm top that filled 0.80 of its rectangle, reported
   /// unflagged 27 mm from either. Raise it for longer parts; 0 disables.
+  /// A cluster whose top is both longer than this and narrower than min_whole_top_width_mm is
+  /// no part and no union of parts (each is at least that wide) but a line across parts, and
+  /// is dropped like one narrower than min_top_width_mm (default seeds 55091 and 55141: 203 x 6
+  /// and 221 x 10 mm strips at 107 and 45 mm, false parts; no such top on the stress logs was
+  /// within 25 mm of a true centre).
   double max_whole_top_length_mm = 95.0;
   /// A part whose top face's outline (its rectangle's corners, or its circle when round) at
   /// its height projects within this many pixels of either image's border, or beyond it, may be
