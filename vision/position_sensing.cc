@@ -86,16 +86,28 @@ void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::
   }
 }
 
+// The four corners of `r` in the table plane.
+std::vector<Eigen::Vector2d> Corners(const Rectangle2D& r) {
+  const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
+  const Eigen::Vector2d along = 0.5 * r.length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
+  const Eigen::Vector2d across = 0.5 * r.width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
+  return {r.centre - along - across, r.centre + along - across, r.centre + along + across,
+          r.centre - along + across};
+}
+
 // Distance (mm) between two rectangles in the table plane: 0 when they overlap, else the
-// smallest distance from a corner of one to the other (rectangles are convex).
+// smallest distance from a corner of one to the other (two disjoint convex polygons are
+// closest at a vertex of one of them).
 double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
-  const auto corners = [](const Rectangle2D& r) {
-    const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
-    const Eigen::Vector2d along = 0.5 * r.length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
-    const Eigen::Vector2d across = 0.5 * r.width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
-    return std::vector<Eigen::Vector2d>{r.centre - along - across, r.centre + along - across,
-                                        r.centre + along + across, r.centre - along + across};
+  const auto rotated = [](const Rectangle2D& r) {
+    return cv::RotatedRect(cv::Point2f(static_cast<float>(r.centre.x()), static_cast<float>(r.centre.y())),
+                           cv::Size2f(static_cast<float>(r.length), static_cast<float>(r.width)),
+                           static_cast<float>(r.yaw_deg));
   };
+  std::vector<cv::Point2f> overlap;
+  if (cv::rotatedRectangleIntersection(rotated(a), rotated(b), overlap) != cv::INTERSECT_NONE) {
+    return 0.0;
+  }
   // Distance from a point to a rectangle (0 inside).
   const auto to = [](const Rectangle2D& r, const Eigen::Vector2d& p) {
     const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
@@ -106,8 +118,8 @@ double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
         .norm();
   };
   double gap = std::numeric_limits<double>::infinity();
-  for (const Eigen::Vector2d& p : corners(a)) gap = std::min(gap, to(b, p));
-  for (const Eigen::Vector2d& p : corners(b)) gap = std::min(gap, to(a, p));
+  for (const Eigen::Vector2d& p : Corners(a)) gap = std::min(gap, to(b, p));
+  for (const Eigen::Vector2d& p : Corners(b)) gap = std::min(gap, to(a, p));
   return gap;
 }
 
@@ -125,13 +137,7 @@ bool OutlineNearImageBorder(const ObjectPose& pose, const calib::StereoCalibrati
                         pose.circle_radius * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
     }
   } else {
-    const Rectangle2D& rect = pose.top_rectangle;
-    const double yaw = rect.yaw_deg * std::numbers::pi / 180.0;
-    const Eigen::Vector2d along = 0.5 * rect.length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
-    const Eigen::Vector2d across = 0.5 * rect.width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
-    for (int a = -1; a <= 1; a += 2) {
-      for (int b = -1; b <= 1; b += 2) outline.push_back(rect.centre + a * along + b * across);
-    }
+    outline = Corners(pose.top_rectangle);
   }
   for (const calib::ProjectionMatrix* P : {&calibration.P1, &calibration.P2}) {
     for (const Eigen::Vector2d& xy : outline) {
