@@ -279,6 +279,16 @@ Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points) {
   return best;
 }
 
+double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
+  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
+  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
+  const Eigen::Vector2d d = p - rectangle.centre;
+  const double along = std::abs(d.dot(u)) - 0.5 * rectangle.length;
+  const double across = std::abs(d.dot(v)) - 0.5 * rectangle.width;
+  if (along <= 0.0 && across <= 0.0) return -std::max(along, across);  // inside
+  return Eigen::Vector2d(std::max(along, 0.0), std::max(across, 0.0)).norm();
+}
+
 namespace {
 
 // The face's far end, cut off with the small groups: a plain top's outline breaks into pieces
@@ -531,7 +541,6 @@ bool InsideConvexPolygon(const std::vector<Eigen::Vector2d>& hull, const Eigen::
   return true;
 }
 
-
 double SegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector2d ab = b - a;
   const double length_squared = ab.squaredNorm();
@@ -625,17 +634,6 @@ int PointsSeenInTheGap(const std::vector<Eigen::Vector3d>& points_in_world,
     if (!InsideConvexPolygon(hull_a, xy) && !InsideConvexPolygon(hull_b, xy)) ++count;
   }
   return count;
-}
-
-// Distance from `p` inside (or outside) `rectangle` to its outline.
-double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p) {
-  const double yaw = rectangle.yaw_deg / kDegreesPerRadian;
-  const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
-  const Eigen::Vector2d d = p - rectangle.centre;
-  const double along = std::abs(d.dot(u)) - 0.5 * rectangle.length;
-  const double across = std::abs(d.dot(v)) - 0.5 * rectangle.width;
-  if (along <= 0.0 && across <= 0.0) return -std::max(along, across);  // inside
-  return Eigen::Vector2d(std::max(along, 0.0), std::max(across, 0.0)).norm();
 }
 
 // Fraction of the side of `piece`'s minimum-area rectangle that faces `towards` covered by the

@@ -237,6 +237,9 @@ std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> points);
 /// rectangle lies on a hull edge; Freeman & Shapira 1975). Empty input gives a zero rectangle.
 Rectangle2D MinAreaRectangle(const std::vector<Eigen::Vector2d>& points);
 
+/// Distance (mm) from `p` to the outline of `rectangle`, inside or outside it.
+double DistanceToRectangleOutline(const Rectangle2D& rectangle, const Eigen::Vector2d& p);
+
 /// Least-squares circle (Kasa: algebraic fit) through `points`; nullopt for fewer than three
 /// points or collinear ones. `rms_residual` gets the RMS of |p - centre| - radius.
 struct Circle2D {

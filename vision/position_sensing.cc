@@ -108,18 +108,10 @@ double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
   if (cv::rotatedRectangleIntersection(rotated(a), rotated(b), overlap) != cv::INTERSECT_NONE) {
     return 0.0;
   }
-  // Distance from a point to a rectangle (0 inside).
-  const auto to = [](const Rectangle2D& r, const Eigen::Vector2d& p) {
-    const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
-    const Eigen::Vector2d u(std::cos(yaw), std::sin(yaw)), v(-u.y(), u.x());
-    const Eigen::Vector2d d = p - r.centre;
-    return Eigen::Vector2d(std::max(std::abs(d.dot(u)) - 0.5 * r.length, 0.0),
-                           std::max(std::abs(d.dot(v)) - 0.5 * r.width, 0.0))
-        .norm();
-  };
+  // Disjoint: every corner lies outside the other rectangle.
   double gap = std::numeric_limits<double>::infinity();
-  for (const Eigen::Vector2d& p : Corners(a)) gap = std::min(gap, to(b, p));
-  for (const Eigen::Vector2d& p : Corners(b)) gap = std::min(gap, to(a, p));
+  for (const Eigen::Vector2d& p : Corners(a)) gap = std::min(gap, DistanceToRectangleOutline(b, p));
+  for (const Eigen::Vector2d& p : Corners(b)) gap = std::min(gap, DistanceToRectangleOutline(a, p));
   return gap;
 }
 
