@@ -201,6 +201,7 @@ std::string PositionSensingOptions::Check() const {
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
     return out.str();
   }
+  if (std::string problem = top_edges.Check(); !problem.empty()) return problem;
   if (std::string problem = grid.Check(); !problem.empty()) return problem;
   if (std::string problem = leader.Check(); !problem.empty()) return problem;
   return pose.Check();
@@ -390,6 +391,32 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     }
     if (pose.merged) ++report.merged;
   }
+  if (options.extend_tops_to_image_edges && !left_grey.empty()) {
+    if (gradient_x.empty()) {
+      cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
+      cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
+    }
+    const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
+                                                         calib::CameraCentre(calibration.P2)};
+    for (std::size_t a = 0; a < report.objects.size(); ++a) {
+      std::vector<Rectangle2D> others;
+      for (std::size_t b = 0; b < report.objects.size(); ++b) {
+        if (b != a && !report.objects[b].round) others.push_back(report.objects[b].top_rectangle);
+        if (b != a && report.objects[b].round) {
+          const ObjectPose& disc = report.objects[b];
+          others.push_back({disc.circle_centre, 2.0 * disc.circle_radius, 2.0 * disc.circle_radius, 0.0});
+        }
+      }
+      const double max_length = options.max_whole_top_length_mm > 0.0
+                                    ? options.max_whole_top_length_mm
+                                    : std::numeric_limits<double>::infinity();
+      const TopFaceEdgeReport extension = ExtendTopToImageEdges(
+          &report.objects[a], calibration.P1, gradient_x, gradient_y, others,
+          report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
+          max_length, pose_options.centroid_from_rectangle, options.top_edges);
+      report.objects[a].image_edge_extension_mm = extension.total_mm();
+    }
+  }
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;
@@ -437,7 +464,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"points_above_top", pose.points_above_top},
          {"taller_touching_points", pose.taller_touching_points},
          {"at_image_border", pose.at_image_border},
-         {"piece_left_out", pose.piece_left_out}});
+         {"piece_left_out", pose.piece_left_out},
+         {"image_edge_extension_mm", pose.image_edge_extension_mm}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

@@ -186,6 +186,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
   sensing.pose.face_end_line_mm =
       std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
+  sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";
   const std::string only_seeds = "," + Env("HNNSTEREO_STRESS_SEEDS", "") + ",";
   std::map<std::string, Bin> bins;
   const auto start = std::chrono::steady_clock::now();
@@ -285,7 +286,8 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
-        std::printf("taller %d above %d ", pose.taller_touching_points, pose.points_above_top);
+        std::printf("taller %d above %d ext %.1f ", pose.taller_touching_points, pose.points_above_top,
+                    pose.image_edge_extension_mm);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

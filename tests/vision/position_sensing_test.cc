@@ -400,7 +400,8 @@ struct SensedTwice {
   TruthComparison truth, truth_before;
 };
 SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
-                                const PositionSensingOptions& before) {
+                                const PositionSensingOptions& before,
+                                const PositionSensingOptions& sensing = CpuOptions()) {
   const std::uint64_t seed = options.seed;
   SensedTwice sensed;
   sensed.scene = RenderScene(options);
@@ -411,7 +412,6 @@ SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
   const calib::StereoCalibration cameras =
       calib::CalibrateCircleTarget((dir / "target").string()).calibration;
   fs::remove_all(dir);
-  const PositionSensingOptions sensing = CpuOptions();
   const MatchReport match =
       MatchStereo(sensed.scene.left, sensed.scene.right, &cameras, sensing.matcher, nullptr);
   sensed.report = SensePositionsFromMatches(match, cameras, sensing, sensed.scene.left);
@@ -696,11 +696,12 @@ void ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(const SensedTwice& sensed) {
 }
 
 // `render --seed SEED --min-gap 0` (touching parts) sensed with the defaults and with `before`.
-SensedTwice SenseTouchingWithAndWithout(std::uint64_t seed, const PositionSensingOptions& before) {
+SensedTwice SenseTouchingWithAndWithout(std::uint64_t seed, const PositionSensingOptions& before,
+                                        const PositionSensingOptions& sensing = CpuOptions()) {
   SceneRenderOptions options;
   options.seed = seed;
   options.min_gap_mm = 0.0;
-  return SenseWithAndWithout(options, before);
+  return SenseWithAndWithout(options, before, sensing);
 }
 
 TEST(PositionSensing, TouchingPartsOfUnequalHeightAreSeparated) {
@@ -809,14 +810,41 @@ TEST(PositionSensing, AFaceEndCutOffWithTheSmallGroupsComesBack) {
   // groups of 12 and 10 points beside a chain of 135, left out as mismatches: seen 62 mm long,
   // reported unflagged 6.1 mm off. Both corners lie on the lines of the sides
   // (ObjectPoseOptions::face_end_line_mm).
-  PositionSensingOptions before = CpuOptions();
+  // The image edges complete these tops too (extend_tops_to_image_edges): off, to see this rule
+  // alone.
+  PositionSensingOptions with = CpuOptions();
+  with.extend_tops_to_image_edges = false;
+  PositionSensingOptions before = with;
   before.pose.face_end_line_mm = 0.0;
-  const SensedTwice sensed = SenseTouchingWithAndWithout(69083, before);
+  const SensedTwice sensed = SenseTouchingWithAndWithout(69083, before, with);
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
   for (const TruthPairing& pair : sensed.truth.pairs) EXPECT_LT(pair.centroid_error_mm, 1.0);
   // `render --seed 79061 --min-gap 0`: a 68 x 29 mm top seen 57 mm long (4.7 mm off) whose far
   // corners were groups of 3 and 2 points, both about 10 mm past the kept points' end.
-  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79061, before));
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79061, before, with));
+}
+
+TEST(PositionSensing, ABoxTopWhoseEndEdgesAreWeakIsCompletedFromTheImage) {
+  // Stress run, `render --seed 85011`: a 67 x 36 mm box, 48 mm tall, nothing beside it; its end
+  // edges lie along the epipolar lines, and the matches at one end were weak or wrong: seen
+  // 58 mm long, reported unflagged 4.2 mm off. The left image shows that end's edge and the
+  // sides running up to it (PositionSensingOptions::extend_tops_to_image_edges).
+  PositionSensingOptions before = CpuOptions();
+  before.extend_tops_to_image_edges = false;
+  const SensedTwice sensed = SenseWithAndWithout(85011, before);
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 1.0, 4.0);
+  double extension = 0.0;
+  for (const ObjectPose& pose : sensed.report.objects) {
+    extension = std::max(extension, pose.image_edge_extension_mm);
+  }
+  EXPECT_GT(extension, 5.0);
+  // The face-end rule's seed (above) is completed by the image too, without that rule.
+  PositionSensingOptions without_face_ends = CpuOptions();
+  without_face_ends.pose.face_end_line_mm = 0.0;
+  PositionSensingOptions neither = without_face_ends;
+  neither.extend_tops_to_image_edges = false;
+  const SensedTwice face_end = SenseTouchingWithAndWithout(69083, neither, without_face_ends);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(face_end);
 }
 
 TEST(PositionSensing, APartBesideAPieceOfItsTopLeftOutIsFlagged) {

@@ -1,0 +1,179 @@
+// ExtendTopToImageEdges on a drawn image: a camera 700 mm above the table looks straight down
+// at a bright 60 x 30 mm top face 40 mm tall on a dark table.
+#include "vision/top_face_edges.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace hnnstereo::vision {
+namespace {
+
+struct DrawnTop {
+  Eigen::Matrix<double, 3, 4> P;
+  Eigen::Vector3d camera_centre{0.0, 0.0, 700.0};
+  cv::Mat image, gradient_x, gradient_y;
+  double height = 40.0;
+};
+
+// Pinhole camera at (0, 0, 700) looking down -z (x right, y down in the image flipped): f 1000 px.
+// `wall_mm` > 0 also draws a mid-grey band that far beyond the face's +x end, as wide as the
+// face: a wall seen beside the top, its base edge in line with nothing but the face's sides.
+DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0) {
+  DrawnTop d;
+  Eigen::Matrix3d K;
+  K << 1000, 0, 320, 0, 1000, 240, 0, 0, 1;
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  Eigen::Matrix<double, 3, 4> Rt;
+  Rt.leftCols<3>() = R;
+  Rt.col(3) = -R * d.camera_centre;
+  d.P = K * Rt;
+  d.image = cv::Mat(480, 640, CV_8U, cv::Scalar(40));
+  std::vector<cv::Point> corners;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{
+           {-length / 2, -width / 2}, {length / 2, -width / 2}, {length / 2, width / 2}, {-length / 2, width / 2}}) {
+    const Eigen::Vector3d p = d.P * Eigen::Vector4d(x, y, d.height, 1.0);
+    corners.emplace_back(static_cast<int>(std::lround(p.x() / p.z())), static_cast<int>(std::lround(p.y() / p.z())));
+  }
+  if (wall_mm > 0.0) {
+    std::vector<cv::Point> wall;
+    for (const auto& [x, y] : std::vector<std::pair<double, double>>{{length / 2, -width / 2},
+                                                                    {length / 2 + wall_mm, -width / 2},
+                                                                    {length / 2 + wall_mm, width / 2},
+                                                                    {length / 2, width / 2}}) {
+      const Eigen::Vector3d p = d.P * Eigen::Vector4d(x, y, d.height, 1.0);
+      wall.emplace_back(static_cast<int>(std::lround(p.x() / p.z())), static_cast<int>(std::lround(p.y() / p.z())));
+    }
+    cv::fillConvexPoly(d.image, wall, cv::Scalar(120));
+  }
+  cv::fillConvexPoly(d.image, corners, cv::Scalar(200));
+  cv::GaussianBlur(d.image, d.image, cv::Size(5, 5), 0.8);
+  cv::Sobel(d.image, d.gradient_x, CV_32F, 1, 0, 3);
+  cv::Sobel(d.image, d.gradient_y, CV_32F, 0, 1, 3);
+  return d;
+}
+
+// The pose of the face's points when its -x end was not matched: seen from x = -18 to +30.
+ObjectPose CutPose(double height) {
+  ObjectPose pose;
+  pose.height_mm = height;
+  pose.top_rectangle.centre = Eigen::Vector2d(6.0, 0.0);
+  pose.top_rectangle.length = 48.0;
+  pose.top_rectangle.width = 30.0;
+  pose.centroid = Eigen::Vector3d(6.0, 0.0, height);
+  return pose;
+}
+
+TopFaceEdgeReport Extend(const DrawnTop& d, ObjectPose* pose, const std::vector<Rectangle2D>& others = {},
+                         const std::vector<Eigen::Vector3d>& points = {}) {
+  return ExtendTopToImageEdges(pose, d.P, d.gradient_x, d.gradient_y, others, points,
+                               std::vector<bool>(points.size(), false), {d.camera_centre}, 5.0, 95.0,
+                               true);
+}
+
+TEST(TopFaceEdges, ACutEndMovesOutToTheFacesEdge) {
+  const DrawnTop d = Draw();
+  ObjectPose pose = CutPose(d.height);
+  const TopFaceEdgeReport report = Extend(d, &pose);
+  EXPECT_NEAR(pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(pose.top_rectangle.width, 30.0, 0.5);
+  EXPECT_NEAR(pose.centroid.x(), 0.0, 0.5);
+  EXPECT_NEAR(pose.centroid.y(), 0.0, 0.5);
+  EXPECT_NEAR(report.total_mm(), 12.0, 1.0);
+  EXPECT_NEAR(report.extension_mm[1], 12.0, 1.0);
+  // The three sides the points found lay at image edges already.
+  EXPECT_GE(report.end_support_before[0], 0.7);
+  EXPECT_LT(report.end_support_before[1], 0.7);
+}
+
+TEST(TopFaceEdges, AWholeTopStaysAsItIs) {
+  const DrawnTop d = Draw();
+  ObjectPose pose = CutPose(d.height);
+  pose.top_rectangle.centre.x() = 0.0;
+  pose.top_rectangle.length = 60.0;
+  pose.centroid.x() = 0.0;
+  EXPECT_EQ(Extend(d, &pose).total_mm(), 0.0);
+  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 60.0);
+}
+
+TEST(TopFaceEdges, TheSideStopsAtTheFacesEdge) {
+  // A face of 48 x 30 drawn: the side moves to its edge, not on to anything beyond.
+  DrawnTop d = Draw(48.0, 30.0);
+  ObjectPose pose = CutPose(d.height);
+  pose.top_rectangle.centre.x() = 0.0;
+  pose.centroid.x() = 0.0;
+  // Cut the rectangle short by 4 mm at +x: the edge is found again 4 mm out, not further.
+  pose.top_rectangle.length = 44.0;
+  pose.top_rectangle.centre.x() = -2.0;
+  Extend(d, &pose);
+  EXPECT_NEAR(pose.top_rectangle.length, 48.0, 1.0);
+}
+
+TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedFurther) {
+  // The points ran 4 mm past the face's +x end (mismatches at the top height): no image edge
+  // under that side, but the face's edge 4 mm inside it. Moving it out would find the wall's
+  // base 11 mm beyond the face, with the face's sides in line with the wall's.
+  const DrawnTop d = Draw(60.0, 30.0, 11.0);
+  ObjectPose pose = CutPose(d.height);
+  pose.top_rectangle.centre.x() = 2.0;
+  pose.top_rectangle.length = 64.0;
+  pose.centroid.x() = 2.0;
+  ObjectPose without_check = pose;
+  const TopFaceEdgeReport report = Extend(d, &pose);
+  EXPECT_EQ(report.total_mm(), 0.0);
+  EXPECT_EQ(report.edge_inside, 1);
+  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 64.0);
+  TopFaceEdgeOptions options;
+  options.max_inward_check_mm = 0.0;
+  ExtendTopToImageEdges(&without_check, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre},
+                        5.0, 95.0, true, options);
+  EXPECT_GT(without_check.top_rectangle.length, 68.0) << "the failure the check exists for";
+}
+
+TEST(TopFaceEdges, TheTableSeenThroughTheStripRefusesIt) {
+  // Table points (z = 0) seen through the strip the extension would add: the face is not there.
+  const DrawnTop d = Draw();
+  ObjectPose pose = CutPose(d.height);
+  std::vector<Eigen::Vector3d> table;
+  for (int i = 0; i < 5; ++i) {
+    // Seen from (0, 0, 700) through (-25, 2i, 40): on the table at x = -25 * 700 / 660.
+    table.emplace_back(-25.0 * 700.0 / 660.0, 2.0 * i * 700.0 / 660.0, 0.0);
+  }
+  const TopFaceEdgeReport report = Extend(d, &pose, {}, table);
+  EXPECT_EQ(report.total_mm(), 0.0);
+  EXPECT_EQ(report.refused_by_points, 1);
+  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 48.0);
+}
+
+TEST(TopFaceEdges, NeverIntoAnotherPart) {
+  const DrawnTop d = Draw();
+  ObjectPose pose = CutPose(d.height);
+  Rectangle2D other;  // a part whose rectangle begins 5 mm beyond the seen end
+  other.centre = Eigen::Vector2d(-43.0, 0.0);
+  other.length = 40.0;
+  other.width = 30.0;
+  Extend(d, &pose, {other});
+  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 48.0);
+}
+
+TEST(TopFaceEdges, RoundTopsAreLeftAlone) {
+  const DrawnTop d = Draw();
+  ObjectPose pose = CutPose(d.height);
+  pose.round = true;
+  EXPECT_EQ(Extend(d, &pose).total_mm(), 0.0);
+}
+
+TEST(TopFaceEdges, BadOptionsAreRefused) {
+  TopFaceEdgeOptions options;
+  EXPECT_TRUE(options.Check().empty());
+  options.step_mm = 0.0;
+  EXPECT_NE(options.Check().find("step_mm"), std::string::npos);
+  options = {};
+  options.min_end_support = 1.5;
+  EXPECT_NE(options.Check().find("min_end_support"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hnnstereo::vision

@@ -1,0 +1,79 @@
+#pragma once
+// A box's top face completed from one image's edges. The matched points outline a plain top
+// face only where its edges cross the epipolar lines well: an end edge along them gives weak or
+// wrong matches and the face's rectangle stops short of it (render seed 85011, default profile:
+// a 67 x 36 mm top seen 58 mm long, its centre 4.2 mm off), although the image shows that edge
+// plainly. Knowing the face's height, each side of the rectangle is pushed outward, at that
+// height, to where the image shows a straight edge across the face with the two neighbouring
+// sides continuing up to it - the face's outline, model-based verification in the manner of
+// Lowe (1987) "Three-dimensional object recognition from single two-dimensional images" - and
+// only where no matched point seen through the extension contradicts it (a solid face hides
+// what lies under it). Written by hand: OpenCV fits lines to edge points but has no test of a
+// given 3D outline against an image.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "vision/object_pose.h"
+
+namespace hnnstereo::vision {
+
+struct TopFaceEdgeOptions {
+  /// Longest extension of one side (mm). render's tops lose up to a third of a side's length to
+  /// weak end edges; a longer reach meets the neighbours' edges.
+  double max_extension_mm = 20.0;
+  /// Step of the search and spacing of the samples along a side (mm): about 1 px in the cell.
+  double step_mm = 0.5;
+  /// An image edge at a sample: the 3 x 3 Sobel gradient's component across the projected side
+  /// is at least this (grey levels per pixel x 8; Canny's lower threshold 50 is of the same
+  /// scale), within 1 px across the side.
+  double min_edge_gradient = 50.0;
+  /// A side is at an image edge when at least this fraction of its samples are (a face's
+  /// outline is continuous in the image; texture and shadows cross it in places) ...
+  double min_end_support = 0.7;
+  /// ... and the two sides beside it continue over the extension on at least this fraction of
+  /// their samples.
+  double min_side_support = 0.6;
+  /// Samples within this distance (mm) of a corner are left out: corners blur into both sides.
+  double corner_margin_mm = 2.0;
+  /// A side with no image edge under it is moved out only when no image edge parallel to it
+  /// lies up to this far (mm) inside: a side beyond the face's edge (points at the top height
+  /// past it) has no edge under it either.
+  double max_inward_check_mm = 6.0;
+  /// An extension is refused when more than this many strong matched points are seen, by
+  /// either camera, through it from below its height (more than 2 top layers below, more than
+  /// 1 mm inside the extended rectangle): the table or a lower part seen where the extended
+  /// face would hide them.
+  int max_contradicting_points = 2;
+  std::string Check() const;
+};
+
+/// The extension of one top: per side (+length, -length, +width, -width) the distance (mm) its
+/// side moved outward, 0 where it already lay at an image edge or found none.
+struct TopFaceEdgeReport {
+  double extension_mm[4] = {0.0, 0.0, 0.0, 0.0};
+  double end_support_before[4] = {0.0, 0.0, 0.0, 0.0};  ///< image-edge fraction of each side
+  int refused_by_points = 0;  ///< sides whose extension matched points contradicted
+  int edge_inside = 0;        ///< sides left as they are: the face's edge lies inside them
+  double total_mm() const { return extension_mm[0] + extension_mm[1] + extension_mm[2] + extension_mm[3]; }
+};
+
+/// Extends `pose`'s top rectangle (not round poses) to the image edges of `image` (seen through
+/// the 3 x 4 projection `P`, gradients `gradient_x`, `gradient_y` of 3 x 3 Sobel, CV_32F), never
+/// into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
+/// `max_length_mm`. `points`/`weak` are all triangulated points and `camera_centres` the
+/// cameras that saw them, for the occlusion test. Updates the rectangle and, when
+/// `centroid_from_rectangle`, the centroid's x, y.
+TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
+                                        const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                        const std::vector<Rectangle2D>& others,
+                                        const std::vector<Eigen::Vector3d>& points,
+                                        const std::vector<bool>& weak,
+                                        const std::vector<Eigen::Vector3d>& camera_centres,
+                                        double top_layer_mm, double max_length_mm,
+                                        bool centroid_from_rectangle,
+                                        const TopFaceEdgeOptions& options = {});
+
+}  // namespace hnnstereo::vision
