@@ -62,6 +62,11 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "Flag parts whose top face reaches within this many pixels of either image's "
                   "border: part of it may be out of view (\"at_image_border\": true; 0 flags none)")
       ->capture_default_str();
+  cmd->add_flag("--image-edges,!--no-image-edges", sensing.extend_tops_to_image_edges,
+                "Fit box tops to the left image's edges: a side of a top the matches left "
+                "short, or stretched past the face, moves to the face's edge seen in the image "
+                "(default on; \"image_edge_moved_mm\" in the output says how far)")
+      ->capture_default_str();
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();

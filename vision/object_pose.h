@@ -221,10 +221,10 @@ struct ObjectPose {
   /// face's rectangle in the table plane and more than top_layer_mm above its top (set by
   /// SensePositions): a taller part touching this one.
   int taller_touching_points = 0;
-  /// How far (mm, summed over its four sides) SensePositions moved this top's rectangle out to
-  /// the left image's edges (PositionSensingOptions::extend_tops_to_image_edges); 0 = the
-  /// rectangle of the points.
-  double image_edge_extension_mm = 0.0;
+  /// How far (mm, summed over its four sides, in or out) SensePositions moved this top's
+  /// rectangle's sides to the left image's edges
+  /// (PositionSensingOptions::extend_tops_to_image_edges); 0 = the rectangle of the points.
+  double image_edge_moved_mm = 0.0;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face
   std::vector<int> point_indices;  ///< into the input points

@@ -414,7 +414,7 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
           &report.objects[a], calibration.P1, gradient_x, gradient_y, others,
           report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
           max_length, pose_options.centroid_from_rectangle, options.top_edges);
-      report.objects[a].image_edge_extension_mm = extension.total_mm();
+      report.objects[a].image_edge_moved_mm = extension.moved_mm();
     }
   }
   report.timing_ms.pose = MillisecondsSince(start);
@@ -465,7 +465,7 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"taller_touching_points", pose.taller_touching_points},
          {"at_image_border", pose.at_image_border},
          {"piece_left_out", pose.piece_left_out},
-         {"image_edge_extension_mm", pose.image_edge_extension_mm}});
+         {"image_edge_moved_mm", pose.image_edge_moved_mm}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

@@ -144,12 +144,14 @@ struct PositionSensingOptions {
   /// (`--min-gap 0`, seed 69062: a 73 x 61 mm top's far edge, 84 points 27 mm away, left out;
   /// the pose 13.8 mm off). Flagged merged and ObjectPose::piece_left_out. 0 disables.
   double left_out_piece_reach_mm = 30.0;
-  /// Box tops completed from the left image's edges (vision/top_face_edges.h): each side of a
-  /// top's rectangle moves outward, at the top's height, to a straight image edge that its two
-  /// neighbouring sides reach, when no matched point seen through the added strip contradicts a
-  /// face there (default seed 85011: a 67 x 36 mm top whose end edges lie along the epipolar
-  /// lines seen 58 mm long, its centre 4.2 mm off). The flags above are set from the points
-  /// before it; ObjectPose::image_edge_extension_mm says how far it moved the sides.
+  /// Box tops fitted to the left image's edges (vision/top_face_edges.h): each side of a top's
+  /// rectangle with no image edge under it moves, at the top's height, out to a straight image
+  /// edge that its two neighbouring sides reach, when no matched point seen through the added
+  /// strip contradicts a face there (default seed 85011: a 67 x 36 mm top whose end edges lie
+  /// along the epipolar lines seen 58 mm long, its centre 4.2 mm off), or in to such an edge
+  /// inside it when few of the top's points lie beyond (default seed 85156: a 43 x 36 mm top
+  /// stretched 9.7 mm by a taller neighbour's points, 4.6 mm off). The flags above are set from
+  /// the points before it; ObjectPose::image_edge_moved_mm says how far it moved the sides.
   bool extend_tops_to_image_edges = true;
   TopFaceEdgeOptions top_edges;
   std::string Check() const;

@@ -202,6 +202,22 @@ int ContradictingPoints(const Frame& f, int k, double from, double height, doubl
   return count;
 }
 
+// Of the part's top-layer points (within top_layer_mm of `height`), the fraction more than
+// 1.5 mm beyond side k of frame f.
+double FractionBeyondSide(const Frame& f, int k, double height, double top_layer_mm,
+                          const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices) {
+  constexpr double kBeyondMm = 1.5;
+  const Side s = SideOf(k);
+  int top = 0, beyond = 0;
+  for (int i : indices) {
+    const Eigen::Vector3d& p = points[static_cast<std::size_t>(i)];
+    if (std::abs(p.z() - height) > top_layer_mm) continue;
+    ++top;
+    if (s.sign * (p.head<2>() - f.centre).dot(f.axis[s.axis]) > f.half[s.axis] + kBeyondMm) ++beyond;
+  }
+  return top > 0 ? static_cast<double>(beyond) / top : 1.0;
+}
+
 }  // namespace
 
 std::string TopFaceEdgeOptions::Check() const {
@@ -215,7 +231,10 @@ std::string TopFaceEdgeOptions::Check() const {
     return "top edges: min_side_support must be in [0, 1]";
   }
   if (!(corner_margin_mm >= 0.0)) return "top edges: corner_margin_mm must be >= 0";
-  if (!(max_inward_check_mm >= 0.0)) return "top edges: max_inward_check_mm must be >= 0";
+  if (!(max_inward_mm >= 0.0)) return "top edges: max_inward_mm must be >= 0";
+  if (!(max_cut_fraction >= 0.0 && max_cut_fraction <= 1.0)) {
+    return "top edges: max_cut_fraction must be in [0, 1]";
+  }
   if (max_contradicting_points < 0) return "top edges: max_contradicting_points must be >= 0";
   return {};
 }
@@ -243,18 +262,39 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
     report.end_support_before[k] = before;
     if (before >= options.min_end_support) continue;
-    // A side that lies beyond the face's edge (points at the top height past it: mismatches, a
-    // neighbour's edge at that height) has no edge under it either, but the face's edge lies
-    // inside it: moving it out would stretch the top further (default seeds 65019, 65086: tops
-    // already 3.7 and 4.2 mm too wide found the walls' base edges beyond).
-    bool edge_inside = false;
-    for (double e = -1.0 - options.step_mm; e >= -options.max_inward_check_mm - 1e-9 && !edge_inside;
-         e -= options.step_mm) {
-      if (f.half[s.axis] + 0.5 * e <= options.corner_margin_mm) break;
-      edge_inside = SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support;
+    // A side that lies beyond the face's edge (points at the top height past it: mismatches,
+    // a neighbour's points joined to the part) has no edge under it either, but the face's
+    // edge lies inside it: moving it out would stretch the top further (default seeds 65019,
+    // 65086: tops already 3.7 and 4.2 mm too wide found the walls' base edges beyond). It moves
+    // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
+    // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
+    double inside = 0.0;
+    for (double e = -1.0 - options.step_mm; e >= -options.max_inward_mm - 1e-9; e -= options.step_mm) {
+      if (f.half[s.axis] + 0.5 * e <= 2.0 * options.corner_margin_mm) break;
+      if (SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support) {
+        inside = e;
+        break;
+      }
     }
-    if (edge_inside) {
+    if (inside < 0.0) {
       ++report.edge_inside;
+      // The support test passes a few pixels outside the edge: its line is where the gradient
+      // peaks, within the next 3 mm inward.
+      double best = inside, best_strength = SideStrength(probe, Extended(f, k, inside), k, options);
+      for (double e = inside - options.step_mm; e >= inside - 3.0 - 1e-9; e -= options.step_mm) {
+        if (f.half[s.axis] + 0.5 * e <= 2.0 * options.corner_margin_mm) break;
+        const double strength = SideStrength(probe, Extended(f, k, e), k, options);
+        if (strength > best_strength) {
+          best = e;
+          best_strength = strength;
+        }
+      }
+      const Frame g = Extended(f, k, best);
+      if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
+          options.max_cut_fraction) {
+        report.extension_mm[k] = best;
+        f = g;
+      }
       continue;
     }
     const double from = f.half[s.axis];
@@ -294,20 +334,19 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     report.extension_mm[k] = best;
     f = g;
   }
-  if (report.total_mm() <= 0.0) return report;
-  Rectangle2D& r = pose->top_rectangle;
-  const bool yaw_from_rectangle = pose->yaw_deg == r.yaw_deg;
-  r.centre = f.centre;
-  // Keep the length along the long side (a width extension may make it the longer one).
-  if (2.0 * f.half[1] > 2.0 * f.half[0]) {
-    r.length = 2.0 * f.half[1];
-    r.width = 2.0 * f.half[0];
-    r.yaw_deg = NormaliseAxisAngle(r.yaw_deg + 90.0);
-    if (yaw_from_rectangle) pose->yaw_deg = r.yaw_deg;
-  } else {
-    r.length = 2.0 * f.half[0];
-    r.width = 2.0 * f.half[1];
+  if (report.moved_mm() == 0.0) return report;
+  if (f.half[1] > f.half[0]) {
+    // The moves made the short side the long one: the yaw (the long side's direction) would
+    // turn 90 degrees on edges that do not settle which side is longer (default seed 85026: a
+    // 75 x 62 mm top of two touching parts). Keep the points' rectangle.
+    report = TopFaceEdgeReport{};
+    report.swapped_sides_refused = true;
+    return report;
   }
+  Rectangle2D& r = pose->top_rectangle;
+  r.centre = f.centre;
+  r.length = 2.0 * f.half[0];
+  r.width = 2.0 * f.half[1];
   if (centroid_from_rectangle) {
     pose->centroid.x() = r.centre.x();
     pose->centroid.y() = r.centre.y();

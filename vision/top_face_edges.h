@@ -12,6 +12,7 @@
 // given 3D outline against an image.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -38,10 +39,14 @@ struct TopFaceEdgeOptions {
   double min_side_support = 0.6;
   /// Samples within this distance (mm) of a corner are left out: corners blur into both sides.
   double corner_margin_mm = 2.0;
-  /// A side with no image edge under it is moved out only when no image edge parallel to it
-  /// lies up to this far (mm) inside: a side beyond the face's edge (points at the top height
-  /// past it) has no edge under it either.
-  double max_inward_check_mm = 6.0;
+  /// A side with no image edge under it but one parallel to it up to this far (mm) inside lies
+  /// beyond the face's edge (points at the top height past it): it moves in to that edge,
+  /// never out ...
+  double max_inward_mm = 15.0;
+  /// ... when at most this fraction of the top's points (within top_layer_mm of its height)
+  /// lie more than 1.5 mm beyond the edge: a face's outline points lie on it, stray points
+  /// beyond it are few.
+  double max_cut_fraction = 0.2;
   /// An extension is refused when more than this many strong matched points are seen, by
   /// either camera, through it from below its height (more than 2 top layers below, more than
   /// 1 mm inside the extended rectangle): the table or a lower part seen where the extended
@@ -50,22 +55,32 @@ struct TopFaceEdgeOptions {
   std::string Check() const;
 };
 
-/// The extension of one top: per side (+length, -length, +width, -width) the distance (mm) its
-/// side moved outward, 0 where it already lay at an image edge or found none.
+/// The moves of one top's sides: per side (+length, -length, +width, -width) the distance (mm)
+/// it moved outward (negative: inward), 0 where it already lay at an image edge or found none.
 struct TopFaceEdgeReport {
   double extension_mm[4] = {0.0, 0.0, 0.0, 0.0};
   double end_support_before[4] = {0.0, 0.0, 0.0, 0.0};  ///< image-edge fraction of each side
   int refused_by_points = 0;  ///< sides whose extension matched points contradicted
-  int edge_inside = 0;        ///< sides left as they are: the face's edge lies inside them
+  int edge_inside = 0;        ///< sides beyond the face's edge (moved in, or kept when the
+                              ///< top's points beyond it are too many)
+  bool swapped_sides_refused = false;  ///< no move: they would make the short side the long one
+  /// Outward moves summed (inward ones count negative).
   double total_mm() const { return extension_mm[0] + extension_mm[1] + extension_mm[2] + extension_mm[3]; }
+  /// Moves summed by size, in or out.
+  double moved_mm() const {
+    return std::abs(extension_mm[0]) + std::abs(extension_mm[1]) + std::abs(extension_mm[2]) +
+           std::abs(extension_mm[3]);
+  }
 };
 
 /// Extends `pose`'s top rectangle (not round poses) to the image edges of `image` (seen through
 /// the 3 x 4 projection `P`, gradients `gradient_x`, `gradient_y` of 3 x 3 Sobel, CV_32F), never
 /// into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
 /// `max_length_mm`. `points`/`weak` are all triangulated points and `camera_centres` the
-/// cameras that saw them, for the occlusion test. Updates the rectangle and, when
-/// `centroid_from_rectangle`, the centroid's x, y.
+/// cameras that saw them, for the occlusion test; the pose's own `point_indices` into them
+/// decide whether a side may move in. Updates the rectangle and, when
+/// `centroid_from_rectangle`, the centroid's x, y; the yaw never changes (moves that would make
+/// the short side the long one are all undone).
 TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
                                         const cv::Mat& gradient_x, const cv::Mat& gradient_y,
                                         const std::vector<Rectangle2D>& others,

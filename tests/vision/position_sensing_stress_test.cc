@@ -287,7 +287,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
         std::printf("taller %d above %d ext %.1f ", pose.taller_touching_points, pose.points_above_top,
-                    pose.image_edge_extension_mm);
+                    pose.image_edge_moved_mm);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

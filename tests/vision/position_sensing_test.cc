@@ -574,9 +574,15 @@ TEST(PositionSensing, ALoneMismatchDoesNotStretchTheTopFace) {
   // mismatches rising off its top left one point in the top layer 12 mm beyond its edge, and
   // the top rectangle (72 x 56 mm) put the centre 5.8 mm off. Lone top points are left out of
   // the outline (min_top_group_points).
-  PositionSensingOptions before = CpuOptions();
+  // The image edges pull that side back in too (extend_tops_to_image_edges): off, to see this
+  // rule alone.
+  PositionSensingOptions with = CpuOptions();
+  with.extend_tops_to_image_edges = false;
+  PositionSensingOptions before = with;
   before.pose.min_top_group_points = 0;
-  const SensedTwice sensed = SenseWithAndWithout(10147, before);
+  SceneRenderOptions scene;
+  scene.seed = 10147;
+  const SensedTwice sensed = SenseWithAndWithout(scene, before, with);
   ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 3.0, 4.0);
 }
 
@@ -824,6 +830,25 @@ TEST(PositionSensing, AFaceEndCutOffWithTheSmallGroupsComesBack) {
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(79061, before, with));
 }
 
+TEST(PositionSensing, ABoxTopStretchedPastItsEdgeMovesInToTheImageEdge) {
+  // Stress runs: `render --seed 85156`, a 43 x 36 mm box, 78 mm tall, seen 53 mm long (a taller
+  // neighbour's points joined to it at its top height), reported unflagged 4.6 mm off; hard
+  // profile `render --seed 48039 --noise 6 --blur 1.0 --texture plain`, a 39 x 28 mm plain top
+  // seen 38 mm wide, 4.7 mm off. No image edge lies under the stretched side, the face's edge
+  // lies inside it, and few of the top's points lie beyond that edge
+  // (TopFaceEdgeOptions::max_inward_mm, max_cut_fraction).
+  PositionSensingOptions before = CpuOptions();
+  before.extend_tops_to_image_edges = false;
+  // (85156 also holds two touching parts reported as one, flagged merged, far from both.)
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseWithAndWithout(85156, before));
+  SceneRenderOptions hard;
+  hard.seed = 48039;
+  hard.noise_sigma_grey = 6.0;
+  hard.blur_sigma_px = 1.0;
+  hard.top_texture = TopTexture::kPlain;
+  ExpectEveryPartWithinAndOneFarWithoutTheRule(SenseWithAndWithout(hard, before), 3.0, 4.0);
+}
+
 TEST(PositionSensing, ABoxTopWhoseEndEdgesAreWeakIsCompletedFromTheImage) {
   // Stress run, `render --seed 85011`: a 67 x 36 mm box, 48 mm tall, nothing beside it; its end
   // edges lie along the epipolar lines, and the matches at one end were weak or wrong: seen
@@ -835,10 +860,10 @@ TEST(PositionSensing, ABoxTopWhoseEndEdgesAreWeakIsCompletedFromTheImage) {
   ExpectEveryPartWithinAndOneFarWithoutTheRule(sensed, 1.0, 4.0);
   double extension = 0.0;
   for (const ObjectPose& pose : sensed.report.objects) {
-    extension = std::max(extension, pose.image_edge_extension_mm);
+    extension = std::max(extension, pose.image_edge_moved_mm);
   }
   EXPECT_GT(extension, 5.0);
-  // The face-end rule's seed (above) is completed by the image too, without that rule.
+  // The face-end rule's seed (below) is completed by the image too, without that rule.
   PositionSensingOptions without_face_ends = CpuOptions();
   without_face_ends.pose.face_end_line_mm = 0.0;
   PositionSensingOptions neither = without_face_ends;

@@ -111,25 +111,44 @@ TEST(TopFaceEdges, TheSideStopsAtTheFacesEdge) {
   EXPECT_NEAR(pose.top_rectangle.length, 48.0, 1.0);
 }
 
-TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedFurther) {
-  // The points ran 4 mm past the face's +x end (mismatches at the top height): no image edge
-  // under that side, but the face's edge 4 mm inside it. Moving it out would find the wall's
-  // base 11 mm beyond the face, with the face's sides in line with the wall's.
+TEST(TopFaceEdges, ASideBeyondTheFacesEdgeMovesInToIt) {
+  // The points ran 4 mm past the face's +x end (two mismatches at the top height): no image
+  // edge under that side, but the face's edge 4 mm inside it. Moving it out would find the
+  // wall's base 11 mm beyond the face, with the face's sides in line with the wall's.
   const DrawnTop d = Draw(60.0, 30.0, 11.0);
   ObjectPose pose = CutPose(d.height);
   pose.top_rectangle.centre.x() = 2.0;
   pose.top_rectangle.length = 64.0;
   pose.centroid.x() = 2.0;
-  ObjectPose without_check = pose;
-  const TopFaceEdgeReport report = Extend(d, &pose);
-  EXPECT_EQ(report.total_mm(), 0.0);
+  // The face's outline points, and the two mismatches.
+  std::vector<Eigen::Vector3d> points;
+  for (double x = -30.0; x <= 30.0; x += 2.0) {
+    points.emplace_back(x, -15.0, d.height);
+    points.emplace_back(x, 15.0, d.height);
+  }
+  points.emplace_back(34.0, 0.0, d.height);
+  points.emplace_back(33.5, 5.0, d.height);
+  for (int i = 0; i < static_cast<int>(points.size()); ++i) pose.point_indices.push_back(i);
+  ObjectPose outward_only = pose, outline_only = pose;
+  const TopFaceEdgeReport report = Extend(d, &pose, {}, points);
   EXPECT_EQ(report.edge_inside, 1);
-  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 64.0);
+  EXPECT_NEAR(report.extension_mm[0], -4.0, 1.0);
+  EXPECT_NEAR(pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(pose.centroid.x(), 0.0, 0.5);
   TopFaceEdgeOptions options;
-  options.max_inward_check_mm = 0.0;
-  ExtendTopToImageEdges(&without_check, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre},
-                        5.0, 95.0, true, options);
-  EXPECT_GT(without_check.top_rectangle.length, 68.0) << "the failure the check exists for";
+  options.max_inward_mm = 0.0;
+  ExtendTopToImageEdges(&outward_only, d.P, d.gradient_x, d.gradient_y, {}, points,
+                        std::vector<bool>(points.size(), false), {d.camera_centre}, 5.0, 95.0, true,
+                        options);
+  EXPECT_GT(outward_only.top_rectangle.length, 68.0) << "the failure the inward search exists for";
+  // Many of the top's points beyond the inner edge: the side stays (a line inside a face is no
+  // reason to cut the face's points away).
+  for (double y = -15.0; y <= 15.0; y += 1.0) points.emplace_back(33.0, y, d.height);
+  for (int i = static_cast<int>(outline_only.point_indices.size()); i < static_cast<int>(points.size()); ++i) {
+    outline_only.point_indices.push_back(i);
+  }
+  Extend(d, &outline_only, {}, points);
+  EXPECT_DOUBLE_EQ(outline_only.top_rectangle.length, 64.0);
 }
 
 TEST(TopFaceEdges, TheTableSeenThroughTheStripRefusesIt) {
