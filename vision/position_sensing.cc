@@ -202,6 +202,8 @@ std::string PositionSensingOptions::Check() const {
     return out.str();
   }
   if (std::string problem = top_edges.Check(); !problem.empty()) return problem;
+  if (std::string problem = refinement.Check(); !problem.empty()) return problem;
+  if (refinement.subpixel) return "refinement.subpixel is for rectified pairs: use epipolar_subpixel";
   if (std::string problem = grid.Check(); !problem.empty()) return problem;
   if (std::string problem = leader.Check(); !problem.empty()) return problem;
   return pose.Check();
@@ -436,6 +438,12 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
   // One image given twice would give a fake part at a fake height (vision/setup_checks.h).
   CheckDistinctViews(left_grey, right_grey);
   MatchReport match = MatchStereo(left_grey, right_grey, &calibration, options.matcher, runtime);
+  if (options.refinement.left_right_check || options.refinement.epipolar_snap ||
+      options.refinement.epipolar_subpixel) {
+    const auto start = std::chrono::steady_clock::now();
+    RefineMatches(left_grey, right_grey, &calibration, options.matcher, options.refinement, &match);
+    match.timing_ms.total += MillisecondsSince(start);
+  }
   return SensePositionsFromMatches(std::move(match), calibration, options, left_grey);
 }
 

@@ -14,6 +14,7 @@
 #include "calib/calibration.h"
 #include "host/opencl_runtime.h"
 #include "vision/clustering.h"
+#include "vision/matcher_presets.h"
 #include "vision/object_pose.h"
 #include "vision/top_face_edges.h"
 #include "vision/scene_render.h"
@@ -154,6 +155,11 @@ struct PositionSensingOptions {
   /// the points before it; ObjectPose::image_edge_moved_mm says how far it moved the sides.
   bool extend_tops_to_image_edges = true;
   TopFaceEdgeOptions top_edges;
+  /// The matches' refinements before triangulation (vision/matcher_presets.h): for the
+  /// unrectified cell the epipolar snap (the right point onto the left point's epipolar line)
+  /// and the parabola sub-pixel fit of ZNCC along it; the left-right check. Measured on the
+  /// stress scenes (docs/position_sensing.md, "Refinements").
+  RefinementOptions refinement;
   std::string Check() const;
 };
 

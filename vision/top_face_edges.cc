@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 namespace hnnstereo::vision {
@@ -57,58 +58,59 @@ class EdgeProbe {
   // Fraction of samples every `step` mm on the segment a-b (world, at the height) where the
   // image gradient across the segment's image reaches the threshold within 1 px across it.
   // `count` gets the number of samples.
-  // Mean image gradient across the segment a-b (world, at the height) at its samples, no
-  // tolerance: peaks on the edge's line.
-  double Strength(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
-    const int n = static_cast<int>(std::floor((b - a).norm() / step)) + 1;
-    Eigen::Vector2d ua, ub;
-    if (!Project(a, &ua) || !Project(b, &ub) || (ub - ua).norm() <= 0.0) return 0.0;
-    const Eigen::Vector2d t = (ub - ua).normalized();
-    const Eigen::Vector2d normal(-t.y(), t.x());
-    double sum = 0.0;
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Vector2d xy = a + (b - a) * (n == 1 ? 0.5 : static_cast<double>(i) / (n - 1));
-      Eigen::Vector2d uv;
-      if (!Project(xy, &uv)) continue;
-      const int u = static_cast<int>(std::lround(uv.x()));
-      const int v = static_cast<int>(std::lround(uv.y()));
-      if (u < 0 || v < 0 || u >= gx_.cols || v >= gx_.rows) continue;
-      sum += std::abs(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
-    }
-    return sum / n;
+  // Fraction of samples every `step` mm on the segment a-b (world, at the height) where the
+  // image gradient across the segment's image reaches the threshold within 1 px across it.
+  double Support(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
+    const std::vector<Across> samples = Sample(a, b, step);
+    if (samples.empty()) return 0.0;
+    int supported = 0;
+    for (const Across& sample : samples) supported += sample.within_1px >= min_gradient_ ? 1 : 0;
+    return static_cast<double>(supported) / static_cast<double>(samples.size());
   }
 
-  double Support(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step, int* count) const {
-    const double length = (b - a).norm();
-    const int n = static_cast<int>(std::floor(length / step)) + 1;
-    *count = 0;
-    if (length <= 0.0) return 0.0;
-    Eigen::Vector2d ua, ub;
-    if (!Project(a, &ua) || !Project(b, &ub) || (ub - ua).norm() <= 0.0) return 0.0;
-    const Eigen::Vector2d t = (ub - ua).normalized();
-    const Eigen::Vector2d normal(-t.y(), t.x());
-    int supported = 0;
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Vector2d xy = a + (b - a) * (n == 1 ? 0.5 : static_cast<double>(i) / (n - 1));
-      Eigen::Vector2d uv;
-      ++*count;
-      if (!Project(xy, &uv)) continue;
-      for (int o = -1; o <= 1; ++o) {
-        const int u = static_cast<int>(std::lround(uv.x() + o * normal.x()));
-        const int v = static_cast<int>(std::lround(uv.y() + o * normal.y()));
-        if (u < 0 || v < 0 || u >= gx_.cols || v >= gx_.rows) continue;
-        const double across =
-            std::abs(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
-        if (across >= min_gradient_) {
-          ++supported;
-          break;
-        }
-      }
-    }
-    return static_cast<double>(supported) / n;
+  // Mean image gradient across the segment a-b at its samples, on the line itself: peaks on the
+  // edge's line.
+  double Strength(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
+    const std::vector<Across> samples = Sample(a, b, step);
+    if (samples.empty()) return 0.0;
+    double sum = 0.0;
+    for (const Across& sample : samples) sum += sample.on_line;
+    return sum / static_cast<double>(samples.size());
   }
 
  private:
+  // The gradient across a segment's image at one sample: on its pixel, and the largest within
+  // 1 px across (0 outside the image).
+  struct Across {
+    double on_line = 0.0, within_1px = 0.0;
+  };
+
+  std::vector<Across> Sample(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
+    Eigen::Vector2d ua, ub;
+    if (!((b - a).norm() > 0.0) || !Project(a, &ua) || !Project(b, &ub) || !((ub - ua).norm() > 0.0)) {
+      return {};
+    }
+    const int n = static_cast<int>(std::floor((b - a).norm() / step)) + 1;
+    const Eigen::Vector2d t = (ub - ua).normalized();
+    const Eigen::Vector2d normal(-t.y(), t.x());
+    const auto across = [&](const Eigen::Vector2d& uv) {
+      const int u = static_cast<int>(std::lround(uv.x()));
+      const int v = static_cast<int>(std::lround(uv.y()));
+      if (u < 0 || v < 0 || u >= gx_.cols || v >= gx_.rows) return 0.0;
+      return std::abs(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
+    };
+    std::vector<Across> samples(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d xy = a + (b - a) * (n == 1 ? 0.5 : static_cast<double>(i) / (n - 1));
+      Eigen::Vector2d uv;
+      if (!Project(xy, &uv)) continue;
+      Across& sample = samples[static_cast<std::size_t>(i)];
+      sample.on_line = across(uv);
+      sample.within_1px = std::max({sample.on_line, across(uv + normal), across(uv - normal)});
+    }
+    return samples;
+  }
+
   const Eigen::Matrix<double, 3, 4>& P_;
   const cv::Mat& gx_;
   const cv::Mat& gy_;
@@ -116,46 +118,44 @@ class EdgeProbe {
   double min_gradient_;
 };
 
-// Edge support of side k of frame f, without the corner margins.
+// Side k of frame f without the corner margins, as a segment a-b; false when nothing is left.
+bool SideSegment(const Frame& f, int k, const TopFaceEdgeOptions& o, Eigen::Vector2d* a,
+                 Eigen::Vector2d* b) {
+  const Side s = SideOf(k);
+  const int other = 1 - s.axis;
+  const double reach = f.half[other] - o.corner_margin_mm;
+  if (reach <= 0.0) return false;
+  const Eigen::Vector2d mid = f.centre + s.sign * f.half[s.axis] * f.axis[s.axis];
+  *a = mid - reach * f.axis[other];
+  *b = mid + reach * f.axis[other];
+  return true;
+}
+
+// Edge support of side k of frame f.
 double SideSupport(const EdgeProbe& probe, const Frame& f, int k, const TopFaceEdgeOptions& o) {
-  const Side s = SideOf(k);
-  const int other = 1 - s.axis;
-  const double reach = f.half[other] - o.corner_margin_mm;
-  if (reach <= 0.0) return 0.0;
-  const Eigen::Vector2d mid = f.centre + s.sign * f.half[s.axis] * f.axis[s.axis];
-  int count = 0;
-  return probe.Support(mid - reach * f.axis[other], mid + reach * f.axis[other], o.step_mm, &count);
+  Eigen::Vector2d a, b;
+  return SideSegment(f, k, o, &a, &b) ? probe.Support(a, b, o.step_mm) : 0.0;
 }
 
-// Mean gradient across side k of frame f, without the corner margins.
+// Mean gradient across side k of frame f.
 double SideStrength(const EdgeProbe& probe, const Frame& f, int k, const TopFaceEdgeOptions& o) {
-  const Side s = SideOf(k);
-  const int other = 1 - s.axis;
-  const double reach = f.half[other] - o.corner_margin_mm;
-  if (reach <= 0.0) return 0.0;
-  const Eigen::Vector2d mid = f.centre + s.sign * f.half[s.axis] * f.axis[s.axis];
-  return probe.Strength(mid - reach * f.axis[other], mid + reach * f.axis[other], o.step_mm);
+  Eigen::Vector2d a, b;
+  return SideSegment(f, k, o, &a, &b) ? probe.Strength(a, b, o.step_mm) : 0.0;
 }
 
-// Edge support of the two sides beside side k over its extension from `from` (the old half
-// extent) to the frame's (the lower of the two); 1 when the extension is too short to sample.
-double NeighbourSidesSupport(const EdgeProbe& probe, const Frame& f, int k, double from,
-                             const TopFaceEdgeOptions& o) {
+// Edge support (the lower of the two) of the sides beside side k of frame f, along the stretch
+// from `near` to `far` (mm from f's centre along side k's outward axis); nullopt when that is
+// under two samples long.
+std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame& f, int k,
+                                            double near, double far, double step) {
+  if (far - near < 2.0 * step) return std::nullopt;
   const Side s = SideOf(k);
   const int other = 1 - s.axis;
-  const double to = f.half[s.axis] - o.corner_margin_mm;
-  // The old side lies at 2 * from - f.half from f's centre (f's centre moved by half the
-  // extension); the samples run from there to the new side less the corner margin.
-  const double start = s.sign * (2.0 * from - f.half[s.axis]);
-  const double end = s.sign * to;
-  if (std::abs(end - start) < 2.0 * o.step_mm) return 1.0;
   double lowest = 1.0;
   for (double across : {-1.0, 1.0}) {
     const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
-    int count = 0;
-    const double support = probe.Support(base + start * f.axis[s.axis], base + end * f.axis[s.axis],
-                                         o.step_mm, &count);
-    lowest = std::min(lowest, support);
+    lowest = std::min(lowest, probe.Support(base + s.sign * near * f.axis[s.axis],
+                                            base + s.sign * far * f.axis[s.axis], step));
   }
   return lowest;
 }
@@ -252,6 +252,30 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
   if (pose->round || options.max_extension_mm <= 0.0 || gradient_x.empty()) return report;
   const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient);
   Frame f = FrameOf(pose->top_rectangle);
+  const double step = options.step_mm;
+  // Whether side k may move by e (mm, outward positive): the top keeps some width and stays
+  // within max_length_mm.
+  const auto admissible = [&](int k, double e) {
+    const Frame g = Extended(f, k, e);
+    return g.half[SideOf(k).axis] > 2.0 * options.corner_margin_mm &&
+           2.0 * std::max(g.half[0], g.half[1]) <= max_length_mm;
+  };
+  // The support test passes a few pixels before an edge (the Sobel response is a few pixels
+  // wide, the test allows 1 px): the edge's line is where the gradient across the side peaks,
+  // within the next 3 mm of a move that first passes it at `first`.
+  const auto strongest_line = [&](int k, double first) {
+    const double direction = first > 0.0 ? step : -step;
+    double best = first, best_strength = SideStrength(probe, Extended(f, k, first), k, options);
+    for (double e = first + direction; std::abs(e - first) <= 3.0 + 1e-9 && admissible(k, e);
+         e += direction) {
+      const double strength = SideStrength(probe, Extended(f, k, e), k, options);
+      if (strength > best_strength) {
+        best = e;
+        best_strength = strength;
+      }
+    }
+    return best;
+  };
   for (int k = 0; k < 4; ++k) {
     const Side s = SideOf(k);
     // Is the side already at an image edge (within 1 mm)?
@@ -269,8 +293,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
     // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
     double inside = 0.0;
-    for (double e = -1.0 - options.step_mm; e >= -options.max_inward_mm - 1e-9; e -= options.step_mm) {
-      if (f.half[s.axis] + 0.5 * e <= 2.0 * options.corner_margin_mm) break;
+    for (double e = -1.0 - step; e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
       if (SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support) {
         inside = e;
         break;
@@ -278,20 +301,19 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
     if (inside < 0.0) {
       ++report.edge_inside;
-      // The support test passes a few pixels outside the edge: its line is where the gradient
-      // peaks, within the next 3 mm inward.
-      double best = inside, best_strength = SideStrength(probe, Extended(f, k, inside), k, options);
-      for (double e = inside - options.step_mm; e >= inside - 3.0 - 1e-9; e -= options.step_mm) {
-        if (f.half[s.axis] + 0.5 * e <= 2.0 * options.corner_margin_mm) break;
-        const double strength = SideStrength(probe, Extended(f, k, e), k, options);
-        if (strength > best_strength) {
-          best = e;
-          best_strength = strength;
-        }
-      }
+      const double best = strongest_line(k, inside);
       const Frame g = Extended(f, k, best);
+      // The face's sides going on past that edge in the image make it a line on the face (a
+      // neighbour's shadow, a mark), not the face's end (default 95059: the arc of a
+      // neighbour's shadow across a box's end, where the points stopped, pulled the top 4 mm
+      // further short).
+      // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
+      // to the side as it was.
+      const std::optional<double> sides_past_edge = NeighbourSidesSupport(
+          probe, f, k, f.half[s.axis] + best + options.corner_margin_mm, f.half[s.axis], step);
       if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
-          options.max_cut_fraction) {
+              options.max_cut_fraction &&
+          sides_past_edge.value_or(0.0) < options.min_side_support) {
         report.extension_mm[k] = best;
         f = g;
       }
@@ -299,32 +321,23 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
     const double from = f.half[s.axis];
     double found = 0.0;
-    for (double e = 1.0; e <= options.max_extension_mm + 1e-9; e += options.step_mm) {
+    for (double e = 1.0; e <= options.max_extension_mm + 1e-9 && admissible(k, e); e += step) {
       const Frame g = Extended(f, k, e);
-      if (2.0 * std::max(g.half[0], g.half[1]) > max_length_mm) break;
       bool blocked = false;
       for (const Rectangle2D& other : others) blocked = blocked || Overlaps(g, other, 1.0);
       if (blocked) break;
+      // The neighbouring sides from the old side (2 from - g.half from g's centre, which moved
+      // by half the extension) to the corner margin before the new one.
       if (SideSupport(probe, g, k, options) >= options.min_end_support &&
-          NeighbourSidesSupport(probe, g, k, from, options) >= options.min_side_support) {
+          NeighbourSidesSupport(probe, g, k, 2.0 * from - g.half[s.axis],
+                                g.half[s.axis] - options.corner_margin_mm, step)
+                  .value_or(1.0) >= options.min_side_support) {
         found = e;
         break;
       }
     }
     if (found <= 0.0) continue;
-    // The support test passes up to a few pixels before the edge (the Sobel response is a
-    // few pixels wide, the test allows 1 px): the edge's line is where the gradient across the
-    // side peaks, within the next 3 mm.
-    double best = found, best_strength = SideStrength(probe, Extended(f, k, found), k, options);
-    for (double e = found + options.step_mm; e <= found + 3.0 + 1e-9; e += options.step_mm) {
-      const Frame g = Extended(f, k, e);
-      if (2.0 * std::max(g.half[0], g.half[1]) > max_length_mm) break;
-      const double strength = SideStrength(probe, g, k, options);
-      if (strength > best_strength) {
-        best = e;
-        best_strength = strength;
-      }
-    }
+    const double best = strongest_line(k, found);
     const Frame g = Extended(f, k, best);
     if (ContradictingPoints(g, k, from, pose->height_mm, top_layer_mm, points, weak,
                             camera_centres) > options.max_contradicting_points) {

@@ -45,7 +45,9 @@ struct TopFaceEdgeOptions {
   double max_inward_mm = 15.0;
   /// ... when at most this fraction of the top's points (within top_layer_mm of its height)
   /// lie more than 1.5 mm beyond the edge: a face's outline points lie on it, stray points
-  /// beyond it are few.
+  /// beyond it are few; and when the two neighbouring sides do not go on past the edge in the
+  /// image (on less than min_side_support of their samples), else the edge is a line on the
+  /// face (a shadow's edge, a mark), not its end.
   double max_cut_fraction = 0.2;
   /// An extension is refused when more than this many strong matched points are seen, by
   /// either camera, through it from below its height (more than 2 top layers below, more than

@@ -187,6 +187,14 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   sensing.pose.face_end_line_mm =
       std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
   sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";
+  // Comparisons: HNNSTEREO_STRESS_SNAP=0|1, HNNSTEREO_STRESS_SUBPIXEL=0|1 (along the epipolar
+  // line, after the snap), HNNSTEREO_STRESS_LR=0|1 (left-right check).
+  sensing.refinement.epipolar_snap =
+      Env("HNNSTEREO_STRESS_SNAP", sensing.refinement.epipolar_snap ? "1" : "0") == "1";
+  sensing.refinement.epipolar_subpixel =
+      Env("HNNSTEREO_STRESS_SUBPIXEL", sensing.refinement.epipolar_subpixel ? "1" : "0") == "1";
+  sensing.refinement.left_right_check =
+      Env("HNNSTEREO_STRESS_LR", sensing.refinement.left_right_check ? "1" : "0") == "1";
   const std::string only_seeds = "," + Env("HNNSTEREO_STRESS_SEEDS", "") + ",";
   std::map<std::string, Bin> bins;
   const auto start = std::chrono::steady_clock::now();

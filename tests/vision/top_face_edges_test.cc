@@ -111,44 +111,66 @@ TEST(TopFaceEdges, TheSideStopsAtTheFacesEdge) {
   EXPECT_NEAR(pose.top_rectangle.length, 48.0, 1.0);
 }
 
-TEST(TopFaceEdges, ASideBeyondTheFacesEdgeMovesInToIt) {
-  // The points ran 4 mm past the face's +x end (two mismatches at the top height): no image
-  // edge under that side, but the face's edge 4 mm inside it. Moving it out would find the
-  // wall's base 11 mm beyond the face, with the face's sides in line with the wall's.
-  const DrawnTop d = Draw(60.0, 30.0, 11.0);
-  ObjectPose pose = CutPose(d.height);
-  pose.top_rectangle.centre.x() = 2.0;
-  pose.top_rectangle.length = 64.0;
-  pose.centroid.x() = 2.0;
-  // The face's outline points, and the two mismatches.
+// A 60 x 30 mm face's outline points (every 2 mm along its long sides) and two mismatches at
+// the top height 3.5 and 4 mm past its +x end; the pose's rectangle runs to them (64 mm long).
+struct StretchedPose {
+  ObjectPose pose;
   std::vector<Eigen::Vector3d> points;
+};
+StretchedPose Stretched(double height) {
+  StretchedPose s;
+  s.pose = CutPose(height);
+  s.pose.top_rectangle.centre.x() = 2.0;
+  s.pose.top_rectangle.length = 64.0;
+  s.pose.centroid.x() = 2.0;
   for (double x = -30.0; x <= 30.0; x += 2.0) {
-    points.emplace_back(x, -15.0, d.height);
-    points.emplace_back(x, 15.0, d.height);
+    s.points.emplace_back(x, -15.0, height);
+    s.points.emplace_back(x, 15.0, height);
   }
-  points.emplace_back(34.0, 0.0, d.height);
-  points.emplace_back(33.5, 5.0, d.height);
-  for (int i = 0; i < static_cast<int>(points.size()); ++i) pose.point_indices.push_back(i);
-  ObjectPose outward_only = pose, outline_only = pose;
-  const TopFaceEdgeReport report = Extend(d, &pose, {}, points);
+  s.points.emplace_back(34.0, 0.0, height);
+  s.points.emplace_back(33.5, 5.0, height);
+  for (int i = 0; i < static_cast<int>(s.points.size()); ++i) s.pose.point_indices.push_back(i);
+  return s;
+}
+
+TEST(TopFaceEdges, ASideBeyondTheFacesEdgeMovesInToIt) {
+  // No image edge under the +x side, the face's edge 4 mm inside it, nothing of the face past
+  // that edge in the image, two of the top's points past it.
+  const DrawnTop d = Draw();
+  StretchedPose s = Stretched(d.height);
+  const TopFaceEdgeReport report = Extend(d, &s.pose, {}, s.points);
   EXPECT_EQ(report.edge_inside, 1);
   EXPECT_NEAR(report.extension_mm[0], -4.0, 1.0);
-  EXPECT_NEAR(pose.top_rectangle.length, 60.0, 1.0);
-  EXPECT_NEAR(pose.centroid.x(), 0.0, 0.5);
+  EXPECT_NEAR(s.pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(s.pose.centroid.x(), 0.0, 0.5);
+  // Many of the top's points past the inner edge: the side stays (a line across a face is no
+  // reason to cut the face's points away).
+  StretchedPose many = Stretched(d.height);
+  for (double y = -15.0; y <= 15.0; y += 1.0) {
+    many.pose.point_indices.push_back(static_cast<int>(many.points.size()));
+    many.points.emplace_back(33.0, y, d.height);
+  }
+  Extend(d, &many.pose, {}, many.points);
+  EXPECT_DOUBLE_EQ(many.pose.top_rectangle.length, 64.0);
+}
+
+TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedOut) {
+  // As above, but a wall seen beside the face's +x end, in line with its sides, 11 mm long:
+  // moving the side out would find the wall's base. The face's sides go on past its edge in
+  // the image (along the wall), so it does not move in either.
+  const DrawnTop d = Draw(60.0, 30.0, 11.0);
+  StretchedPose s = Stretched(d.height);
+  StretchedPose outward_only = s;
+  const TopFaceEdgeReport report = Extend(d, &s.pose, {}, s.points);
+  EXPECT_EQ(report.edge_inside, 1);
+  EXPECT_EQ(report.moved_mm(), 0.0);
+  EXPECT_DOUBLE_EQ(s.pose.top_rectangle.length, 64.0);
   TopFaceEdgeOptions options;
   options.max_inward_mm = 0.0;
-  ExtendTopToImageEdges(&outward_only, d.P, d.gradient_x, d.gradient_y, {}, points,
-                        std::vector<bool>(points.size(), false), {d.camera_centre}, 5.0, 95.0, true,
-                        options);
-  EXPECT_GT(outward_only.top_rectangle.length, 68.0) << "the failure the inward search exists for";
-  // Many of the top's points beyond the inner edge: the side stays (a line inside a face is no
-  // reason to cut the face's points away).
-  for (double y = -15.0; y <= 15.0; y += 1.0) points.emplace_back(33.0, y, d.height);
-  for (int i = static_cast<int>(outline_only.point_indices.size()); i < static_cast<int>(points.size()); ++i) {
-    outline_only.point_indices.push_back(i);
-  }
-  Extend(d, &outline_only, {}, points);
-  EXPECT_DOUBLE_EQ(outline_only.top_rectangle.length, 64.0);
+  ExtendTopToImageEdges(&outward_only.pose, d.P, d.gradient_x, d.gradient_y, {}, outward_only.points,
+                        std::vector<bool>(outward_only.points.size(), false), {d.camera_centre}, 5.0,
+                        95.0, true, options);
+  EXPECT_GT(outward_only.pose.top_rectangle.length, 68.0) << "the failure the inward search exists for";
 }
 
 TEST(TopFaceEdges, TheTableSeenThroughTheStripRefusesIt) {
