@@ -173,27 +173,27 @@ bool Overlaps(const Frame& f, const Rectangle2D& other, double margin) {
   return cv::rotatedRectangleIntersection(a, b, overlap) != cv::INTERSECT_NONE;
 }
 
-// Strong points below the top seen through the strip that side k's extension adds (between the
-// old side, at half extent `from`, and the new one, 1.5 mm inside both and inside the others).
-int ContradictingPoints(const Frame& f, int k, double from, double height, double top_layer_mm,
-                        const std::vector<Eigen::Vector3d>& points, const std::vector<bool>& weak,
-                        const std::vector<Eigen::Vector3d>& camera_centres) {
-  constexpr double kInsideMm = 1.5;
+// Strong points (not `weak`) for which `counts(z)` holds, seen by any camera of
+// `camera_centres` (above the plane) through a strip of the plane z = `height`: along side k of
+// frame f from `near` to `far` (mm from f's centre along the side's outward axis), across
+// within f's half width less `inset`.
+template <typename Counts>
+int PointsSeenThroughStrip(const Frame& f, int k, double near, double far, double inset,
+                           double height, Counts counts, const std::vector<Eigen::Vector3d>& points,
+                           const std::vector<bool>& weak,
+                           const std::vector<Eigen::Vector3d>& camera_centres) {
   const Side s = SideOf(k);
   const int other = 1 - s.axis;
-  // Signed offsets along the side's axis from f's centre: the old side and the new one.
-  const double old_side = 2.0 * from - f.half[s.axis];
   int count = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (weak[i] || !(points[i].z() < height - 2.0 * top_layer_mm)) continue;
+    if (weak[i] || !counts(points[i].z())) continue;
     for (const Eigen::Vector3d& C : camera_centres) {
-      if (!(C.z() > height)) continue;
+      if (!(C.z() > height) || points[i].z() == C.z()) continue;
       const double t = (height - C.z()) / (points[i].z() - C.z());
       const Eigen::Vector2d q = (C + t * (points[i] - C)).head<2>() - f.centre;
       const double along = s.sign * q.dot(f.axis[s.axis]);
       const double across = std::abs(q.dot(f.axis[other]));
-      if (along > old_side + kInsideMm && along < f.half[s.axis] - kInsideMm &&
-          across < f.half[other] - kInsideMm) {
+      if (along > near && along < far && across < f.half[other] - inset) {
         ++count;
         break;
       }
@@ -308,9 +308,12 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // neighbour's shadow across a box's end, where the points stopped, pulled the top 4 mm
       // further short).
       // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
-      // to the side as it was.
+      // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
+      // a face that goes on past the edge goes on past the side as well.
+      constexpr double kSidesPastMm = 4.0;
+      const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
       const std::optional<double> sides_past_edge = NeighbourSidesSupport(
-          probe, f, k, f.half[s.axis] + best + options.corner_margin_mm, f.half[s.axis], step);
+          probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm), step);
       if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
               options.max_cut_fraction &&
           sides_past_edge.value_or(0.0) < options.min_side_support) {
@@ -339,8 +342,14 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     if (found <= 0.0) continue;
     const double best = strongest_line(k, found);
     const Frame g = Extended(f, k, best);
-    if (ContradictingPoints(g, k, from, pose->height_mm, top_layer_mm, points, weak,
-                            camera_centres) > options.max_contradicting_points) {
+    // Lower points seen through the added strip (1.5 mm inside its sides): the table or a
+    // lower part where the face would hide them.
+    constexpr double kInsideMm = 1.5;
+    const double low = pose->height_mm - 2.0 * top_layer_mm;
+    if (PointsSeenThroughStrip(
+            g, k, 2.0 * from - g.half[s.axis] + kInsideMm, g.half[s.axis] - kInsideMm, kInsideMm,
+            pose->height_mm, [low](double z) { return z < low; }, points, weak,
+            camera_centres) > options.max_contradicting_points) {
       ++report.refused_by_points;
       continue;
     }

@@ -214,6 +214,13 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
                                                         std::to_string(seed));
       WriteSceneDirectory(scene, target, dir.string());
       cameras = calib::CalibrateCircleTarget((dir / "target").string()).calibration;
+      // HNNSTEREO_STRESS_KEEP=DIR keeps each scene as `render` writes it, in DIR/SEED (to look
+      // at a failure with `pick`).
+      if (const std::string keep = Env("HNNSTEREO_STRESS_KEEP", ""); !keep.empty()) {
+        fs::create_directories(keep);
+        fs::remove_all(fs::path(keep) / std::to_string(seed));
+        fs::rename(dir, fs::path(keep) / std::to_string(seed));
+      }
       fs::remove_all(dir);
     }
     const PositionSensingReport report =
