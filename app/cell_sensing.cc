@@ -67,6 +67,11 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                 "short, or stretched past the face, moves to the face's edge seen in the image "
                 "(default on; \"image_edge_moved_mm\" in the output says how far)")
       ->capture_default_str();
+  cmd->add_flag("--subpixel,!--no-subpixel", sensing.refinement.epipolar_subpixel,
+                "Before triangulating, move each match's right point along its epipolar line to "
+                "the sub-pixel peak of ZNCC (it is snapped onto the line either way; default on: "
+                "heights about 2.5x tighter)")
+      ->capture_default_str();
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();

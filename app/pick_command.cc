@@ -144,10 +144,10 @@ void RunPick(PickArgs& args) {
     std::printf("%3d %9.1f %9.1f %9.1f %8.1f %7.1f %7d\n", id++, pose.centroid.x(),
                 pose.centroid.y(), pose.height_mm, pose.yaw_deg, pose.yaw_moments_deg, pose.points);
   }
-  std::printf("time: match %.0f ms (solve %.0f ms, %s), triangulate %.1f ms, cluster %.1f ms, "
-              "poses %.1f ms\nwrote %s\n",
+  std::printf("time: match %.0f ms (solve %.0f ms, %s), refine %.1f ms, triangulate %.1f ms, "
+              "cluster %.1f ms, poses %.1f ms\nwrote %s\n",
               report.timing_ms.match, report.match.timing_ms.solve,
-              report.match.solve.engine.c_str(), report.timing_ms.triangulate,
+              report.match.solve.engine.c_str(), report.timing_ms.refine, report.timing_ms.triangulate,
               report.timing_ms.cluster, report.timing_ms.pose, args.out.c_str());
 }
 

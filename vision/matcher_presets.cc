@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "vision/correlation.h"
@@ -195,6 +196,24 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
   if (!rectified && calibration == nullptr) {
     throw std::invalid_argument("RefineMatches: an unrectified pair needs its calibration");
   }
+  // The epipolar snap and sub-pixel fit work per match alone (after the left-right check):
+  // in parallel, and without the ZNCC tables, which only the check and the row fit use.
+  const bool along_epipolar_lines =
+      !rectified && (refinement.epipolar_snap || refinement.epipolar_subpixel);
+  const auto refine_along_epipolar_lines = [&] {
+    if (!along_epipolar_lines) return;
+    std::vector<StereoMatch>& matches = report->matches;
+    cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
+      for (int i = range.start; i < range.end; ++i) {
+        RefineAlongEpipolarLine(left_grey, right_grey, calibration->F, matcher.zncc_window,
+                                refinement.epipolar_subpixel, &matches[static_cast<std::size_t>(i)]);
+      }
+    });
+  };
+  if (!refinement.left_right_check && !(refinement.subpixel && rectified)) {
+    refine_along_epipolar_lines();
+    return;
+  }
   const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window);
   const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
   const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
@@ -243,13 +262,10 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
         match.right.x() = right.x() + static_cast<float>(offset);
       }
     }
-    if (!rectified && (refinement.epipolar_snap || refinement.epipolar_subpixel)) {
-      RefineAlongEpipolarLine(left_grey, right_grey, calibration->F, matcher.zncc_window,
-                              refinement.epipolar_subpixel, &match);
-    }
     kept.push_back(match);
   }
   report->matches = std::move(kept);
+  refine_along_epipolar_lines();
 }
 
 MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,
