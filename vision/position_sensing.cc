@@ -408,13 +408,14 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
                                                          calib::CameraCentre(calibration.P2)};
     for (std::size_t a = 0; a < report.objects.size(); ++a) {
+      // The other parts' tops (a round one as its circle's square), which no side may enter.
       std::vector<Rectangle2D> others;
       for (std::size_t b = 0; b < report.objects.size(); ++b) {
-        if (b != a && !report.objects[b].round) others.push_back(report.objects[b].top_rectangle);
-        if (b != a && report.objects[b].round) {
-          const ObjectPose& disc = report.objects[b];
-          others.push_back({disc.circle_centre, 2.0 * disc.circle_radius, 2.0 * disc.circle_radius, 0.0});
-        }
+        if (b == a) continue;
+        const ObjectPose& other = report.objects[b];
+        const double diameter = 2.0 * other.circle_radius;
+        others.push_back(other.round ? Rectangle2D{other.circle_centre, diameter, diameter, 0.0}
+                                     : other.top_rectangle);
       }
       const double max_length = options.max_whole_top_length_mm > 0.0
                                     ? options.max_whole_top_length_mm

@@ -57,7 +57,6 @@ class EdgeProbe {
 
   // Fraction of samples every `step` mm on the segment a-b (world, at the height) where the
   // image gradient across the segment's image reaches the threshold within 1 px across it.
-  // `count` gets the number of samples.
   // Fraction of samples every `step` mm on the segment a-b (world, at the height) where the
   // image gradient across the segment's image reaches the threshold within 1 px across it.
   double Support(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
@@ -173,20 +172,20 @@ bool Overlaps(const Frame& f, const Rectangle2D& other, double margin) {
   return cv::rotatedRectangleIntersection(a, b, overlap) != cv::INTERSECT_NONE;
 }
 
-// Strong points (not `weak`) for which `counts(z)` holds, seen by any camera of
-// `camera_centres` (above the plane) through a strip of the plane z = `height`: along side k of
-// frame f from `near` to `far` (mm from f's centre along the side's outward axis), across
-// within f's half width less `inset`.
-template <typename Counts>
-int PointsSeenThroughStrip(const Frame& f, int k, double near, double far, double inset,
-                           double height, Counts counts, const std::vector<Eigen::Vector3d>& points,
-                           const std::vector<bool>& weak,
-                           const std::vector<Eigen::Vector3d>& camera_centres) {
+// Strong points (not `weak`) lower than `max_z`, seen by any camera of `camera_centres` (above
+// the plane) through a strip of the plane z = `height`: along side k of frame f from `near` to
+// `far` (mm from f's centre along the side's outward axis), across within f's half width less
+// `inset`.
+int LowerPointsSeenThroughStrip(const Frame& f, int k, double near, double far, double inset,
+                                double height, double max_z,
+                                const std::vector<Eigen::Vector3d>& points,
+                                const std::vector<bool>& weak,
+                                const std::vector<Eigen::Vector3d>& camera_centres) {
   const Side s = SideOf(k);
   const int other = 1 - s.axis;
   int count = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (weak[i] || !counts(points[i].z())) continue;
+    if (weak[i] || !(points[i].z() < max_z)) continue;
     for (const Eigen::Vector3d& C : camera_centres) {
       if (!(C.z() > height) || points[i].z() == C.z()) continue;
       const double t = (height - C.z()) / (points[i].z() - C.z());
@@ -249,7 +248,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
                                         bool centroid_from_rectangle,
                                         const TopFaceEdgeOptions& options) {
   TopFaceEdgeReport report;
-  if (pose->round || options.max_extension_mm <= 0.0 || gradient_x.empty()) return report;
+  if (pose->round || gradient_x.empty()) return report;
   const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient);
   Frame f = FrameOf(pose->top_rectangle);
   const double step = options.step_mm;
@@ -346,10 +345,10 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     // lower part where the face would hide them.
     constexpr double kInsideMm = 1.5;
     const double low = pose->height_mm - 2.0 * top_layer_mm;
-    if (PointsSeenThroughStrip(
-            g, k, 2.0 * from - g.half[s.axis] + kInsideMm, g.half[s.axis] - kInsideMm, kInsideMm,
-            pose->height_mm, [low](double z) { return z < low; }, points, weak,
-            camera_centres) > options.max_contradicting_points) {
+    if (LowerPointsSeenThroughStrip(g, k, 2.0 * from - g.half[s.axis] + kInsideMm,
+                                    g.half[s.axis] - kInsideMm, kInsideMm, pose->height_mm, low,
+                                    points, weak, camera_centres) >
+        options.max_contradicting_points) {
       ++report.refused_by_points;
       continue;
     }

@@ -63,8 +63,8 @@ struct TopFaceEdgeReport {
   double extension_mm[4] = {0.0, 0.0, 0.0, 0.0};
   double end_support_before[4] = {0.0, 0.0, 0.0, 0.0};  ///< image-edge fraction of each side
   int refused_by_points = 0;  ///< sides whose extension matched points contradicted
-  int edge_inside = 0;        ///< sides beyond the face's edge (moved in, or kept when the
-                              ///< top's points beyond it are too many)
+  int edge_inside = 0;        ///< sides beyond the face's edge (moved in, or kept when too
+                              ///< many of the top's points, or the face's sides, go past it)
   bool swapped_sides_refused = false;  ///< no move: they would make the short side the long one
   /// Outward moves summed (inward ones count negative).
   double total_mm() const { return extension_mm[0] + extension_mm[1] + extension_mm[2] + extension_mm[3]; }
@@ -75,9 +75,9 @@ struct TopFaceEdgeReport {
   }
 };
 
-/// Extends `pose`'s top rectangle (not round poses) to the image edges of `image` (seen through
-/// the 3 x 4 projection `P`, gradients `gradient_x`, `gradient_y` of 3 x 3 Sobel, CV_32F), never
-/// into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
+/// Moves the sides of `pose`'s top rectangle (not round poses) in or out to the face's edges in
+/// one image (seen through the 3 x 4 projection `P`; `gradient_x`, `gradient_y` its 3 x 3
+/// Sobel gradients, CV_32F; see TopFaceEdgeOptions), never into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
 /// `max_length_mm`. `points`/`weak` are all triangulated points and `camera_centres` the
 /// cameras that saw them, for the occlusion test; the pose's own `point_indices` into them
 /// decide whether a side may move in. Updates the rectangle and, when
