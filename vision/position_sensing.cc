@@ -115,22 +115,112 @@ double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
   return gap;
 }
 
+// The outline of `pose`'s top face in the table plane, counter-clockwise: its rectangle's
+// corners, or 32 points of its circle when round.
+std::vector<Eigen::Vector2d> TopOutline(const ObjectPose& pose) {
+  if (!pose.round) return Corners(pose.top_rectangle);
+  constexpr int kCirclePoints = 32;
+  std::vector<Eigen::Vector2d> outline;
+  for (int k = 0; k < kCirclePoints; ++k) {
+    const double angle = 2.0 * std::numbers::pi * k / kCirclePoints;
+    outline.push_back(pose.circle_centre +
+                      pose.circle_radius * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+  }
+  return outline;
+}
+
+// Distance (mm) along the ray from `origin` in direction `direction` (unit) to where it enters
+// the convex polygon `polygon` (counter-clockwise, table plane); +infinity when it misses it,
+// 0 when it starts inside. Cyrus-Beck clipping.
+double RayEntryIntoConvexPolygon(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction,
+                                 const std::vector<Eigen::Vector2d>& polygon) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  double enter = 0.0, leave = kInfinity;
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const Eigen::Vector2d edge = polygon[(i + 1) % polygon.size()] - polygon[i];
+    const Eigen::Vector2d outward(edge.y(), -edge.x());  // counter-clockwise polygon
+    const double distance = outward.dot(origin - polygon[i]);  // > 0: outside this edge
+    const double rate = outward.dot(direction);
+    if (rate == 0.0) {
+      if (distance > 0.0) return kInfinity;
+      continue;
+    }
+    const double t = -distance / rate;
+    if (rate < 0.0) {
+      enter = std::max(enter, t);
+    } else {
+      leave = std::min(leave, t);
+    }
+  }
+  return enter <= leave ? enter : kInfinity;
+}
+
+// ObjectPose::shadow_strip_mm of a box top: per side, rays every 1 mm along the side (2 mm
+// from the corners) go outward to the nearest taller part's top outline (more than
+// `top_layer_mm` above this top; a part's walls stand under its outline) within
+// `max_strip_mm`; when at least half of them reach one,
+// the strip between is empty if at most `max_points` strong points at any height lie in it
+// (more than 1 mm from both). The widest such strip's median width; 0 when none.
+double EmptyStripToTallerPart(const std::vector<ObjectPose>& poses, std::size_t self,
+                              const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<bool>& weak, double top_layer_mm,
+                              double max_strip_mm, int max_points) {
+  const ObjectPose& pose = poses[self];
+  const Rectangle2D& r = pose.top_rectangle;
+  const double yaw = r.yaw_deg * std::numbers::pi / 180.0;
+  const Eigen::Vector2d along(std::cos(yaw), std::sin(yaw));
+  const Eigen::Vector2d across(-along.y(), along.x());
+  std::vector<std::vector<Eigen::Vector2d>> taller;
+  for (std::size_t b = 0; b < poses.size(); ++b) {
+    if (b != self && poses[b].height_mm > pose.height_mm + top_layer_mm) {
+      taller.push_back(TopOutline(poses[b]));
+    }
+  }
+  if (taller.empty()) return 0.0;
+  double widest = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2d outward = (k % 2 == 0 ? 1.0 : -1.0) * (k < 2 ? along : across);
+    const Eigen::Vector2d lateral = k < 2 ? across : along;
+    const double half_out = 0.5 * (k < 2 ? r.length : r.width);
+    const double half_side = 0.5 * (k < 2 ? r.width : r.length) - 2.0;
+    if (half_side <= 0.0) continue;
+    std::vector<double> widths;  // per ray that meets a taller part in reach
+    int rays = 0;
+    double lateral_min = std::numeric_limits<double>::infinity(), lateral_max = -lateral_min;
+    for (double l = -half_side; l <= half_side; l += 1.0, ++rays) {
+      const Eigen::Vector2d origin = r.centre + half_out * outward + l * lateral;
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const auto& outline : taller) {
+        nearest = std::min(nearest, RayEntryIntoConvexPolygon(origin, outward, outline));
+      }
+      if (nearest <= max_strip_mm) {
+        widths.push_back(nearest);
+        lateral_min = std::min(lateral_min, l);
+        lateral_max = std::max(lateral_max, l);
+      }
+    }
+    if (widths.empty() || 2 * static_cast<int>(widths.size()) < rays) continue;
+    std::nth_element(widths.begin(), widths.begin() + widths.size() / 2, widths.end());
+    const double width = widths[widths.size() / 2];
+    if (width <= 2.0) continue;  // nothing between them
+    int inside = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (weak[i]) continue;
+      const Eigen::Vector2d d = points[i].head<2>() - r.centre;
+      const double out = d.dot(outward) - half_out, side = d.dot(lateral);
+      if (out > 1.0 && out < width - 1.0 && side >= lateral_min && side <= lateral_max) ++inside;
+    }
+    if (inside <= max_points) widest = std::max(widest, width);
+  }
+  return widest;
+}
+
 // Whether the outline of `pose`'s top face - its rectangle's corners, or 32 points of its
 // circle when round - at its height projects within `margin_px` of the border of either image
 // (of `image_size`), or beyond it.
 bool OutlineNearImageBorder(const ObjectPose& pose, const calib::StereoCalibration& calibration,
                             const cv::Size& image_size, double margin_px) {
-  std::vector<Eigen::Vector2d> outline;
-  if (pose.round) {
-    constexpr int kCirclePoints = 32;
-    for (int k = 0; k < kCirclePoints; ++k) {
-      const double angle = 2.0 * std::numbers::pi * k / kCirclePoints;
-      outline.push_back(pose.circle_centre +
-                        pose.circle_radius * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
-    }
-  } else {
-    outline = Corners(pose.top_rectangle);
-  }
+  const std::vector<Eigen::Vector2d> outline = TopOutline(pose);
   for (const calib::ProjectionMatrix* P : {&calibration.P1, &calibration.P2}) {
     for (const Eigen::Vector2d& xy : outline) {
       const Eigen::Vector3d x = *P * Eigen::Vector4d(xy.x(), xy.y(), pose.height_mm, 1.0);
@@ -198,6 +288,8 @@ std::string PositionSensingOptions::Check() const {
   if (!(min_whole_top_width_mm >= 0.0)) return "min_whole_top_width_mm must be >= 0";
   if (!(max_whole_top_length_mm >= 0.0)) return "max_whole_top_length_mm must be >= 0";
   if (!(left_out_piece_reach_mm >= 0.0)) return "left_out_piece_reach_mm must be >= 0";
+  if (!(shadow_strip_reach_mm >= 0.0)) return "shadow_strip_reach_mm must be >= 0";
+  if (max_shadow_strip_points < 0) return "max_shadow_strip_points must be >= 0";
   if (!(max_round_top_roundness >= 0.0)) return "max_round_top_roundness must be >= 0";
   if (min_taller_touching_points < 0) return "min_taller_touching_points must be >= 0";
   if (!(image_border_px >= 0.0 && std::isfinite(image_border_px))) {
@@ -427,6 +519,17 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       report.objects[a].image_edge_moved_mm = extension.moved_mm();
     }
   }
+  for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report.objects.size(); ++a) {
+    ObjectPose& pose = report.objects[a];
+    if (pose.round) continue;
+    pose.shadow_strip_mm = EmptyStripToTallerPart(
+        report.objects, a, report.points_in_world, report.weak, pose_options.top_layer_mm,
+        options.shadow_strip_reach_mm, options.max_shadow_strip_points);
+    if (pose.shadow_strip_mm > 0.0 && !pose.merged) {
+      pose.merged = true;
+      ++report.merged;
+    }
+  }
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;
@@ -482,7 +585,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"taller_touching_points", pose.taller_touching_points},
          {"at_image_border", pose.at_image_border},
          {"piece_left_out", pose.piece_left_out},
-         {"image_edge_moved_mm", pose.image_edge_moved_mm}});
+         {"image_edge_moved_mm", pose.image_edge_moved_mm},
+         {"shadow_strip_mm", pose.shadow_strip_mm}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

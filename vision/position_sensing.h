@@ -149,6 +149,15 @@ struct PositionSensingOptions {
   /// (`--min-gap 0`, seed 69062: a 73 x 61 mm top's far edge, 84 points 27 mm away, left out;
   /// the pose 13.8 mm off). Flagged merged and ObjectPose::piece_left_out. 0 disables.
   double left_out_piece_reach_mm = 30.0;
+  /// A box whose top has an empty strip (at most max_shadow_strip_points strong points at any
+  /// height) between one of its sides and a taller part up to this far (mm) beyond it, along
+  /// at least half that side, is flagged merged (ObjectPose::shadow_strip_mm): nothing shows
+  /// that the top ends at that side, and the taller part's shadow can hide the rest of it
+  /// where the face's outline has no contrast left (`--min-gap 0`, seed 179050: a 75 x 50 mm
+  /// top whose far 7 mm lie in a 115 mm neighbour's shadow, as dark as the ground around, seen
+  /// 68 mm long, 4.0 mm off). Checked after the image-edge fit below. 0 disables.
+  double shadow_strip_reach_mm = 20.0;
+  int max_shadow_strip_points = 2;
   /// Box tops fitted to the left image's edges (vision/top_face_edges.h): each side of a top's
   /// rectangle with no image edge under it moves, at the top's height, out to a straight image
   /// edge that its two neighbouring sides reach, when no matched point seen through the added

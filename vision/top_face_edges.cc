@@ -67,6 +67,35 @@ class EdgeProbe {
     return static_cast<double>(supported) / static_cast<double>(samples.size());
   }
 
+  // Fraction of samples every `step` mm on the segment a-b (world, at the height) where the
+  // image gradient across it reaches the threshold within 1 px across it with the given
+  // polarity: `polarity` > 0 counts samples brighter on the side of `outward` (a world
+  // direction in the plane), < 0 darker.
+  double PolarSupport(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                      const Eigen::Vector2d& outward, double polarity, double step) const {
+    const std::vector<Across> samples = Sample(a, b, step);
+    const double orientation = OutwardOrientation(a, b, outward);
+    if (samples.empty() || orientation == 0.0) return 0.0;
+    int supported = 0;
+    for (const Across& sample : samples) {
+      const double signed_gradient = orientation * sample.signed_within_1px;
+      supported += polarity * signed_gradient >= min_gradient_ ? 1 : 0;
+    }
+    return static_cast<double>(supported) / static_cast<double>(samples.size());
+  }
+
+  // Mean gradient across the segment a-b towards `outward` (a world direction in the plane):
+  // > 0 when the image is brighter on that side.
+  double MeanOutwardGradient(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                             const Eigen::Vector2d& outward, double step) const {
+    const std::vector<Across> samples = Sample(a, b, step);
+    const double orientation = OutwardOrientation(a, b, outward);
+    if (samples.empty()) return 0.0;
+    double sum = 0.0;
+    for (const Across& sample : samples) sum += orientation * sample.signed_within_1px;
+    return sum / static_cast<double>(samples.size());
+  }
+
   // Mean image gradient across the segment a-b at its samples, on the line itself: peaks on the
   // edge's line.
   double Strength(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
@@ -82,7 +111,24 @@ class EdgeProbe {
   // 1 px across (0 outside the image).
   struct Across {
     double on_line = 0.0, within_1px = 0.0;
+    /// The gradient of largest magnitude within 1 px, signed along the image normal of the
+    /// segment (t rotated by +90 degrees, t from a's image to b's).
+    double signed_within_1px = 0.0;
   };
+
+  // +1 when `outward` (world, in the plane, from the segment a-b's middle) points along the
+  // image normal of Sample, -1 against it, 0 when undefined.
+  double OutwardOrientation(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                            const Eigen::Vector2d& outward) const {
+    Eigen::Vector2d ua, ub, um, uo;
+    const Eigen::Vector2d mid = 0.5 * (a + b);
+    if (!Project(a, &ua) || !Project(b, &ub) || !Project(mid, &um) || !Project(mid + outward, &uo)) {
+      return 0.0;
+    }
+    const Eigen::Vector2d t = ub - ua;
+    const double side = Eigen::Vector2d(-t.y(), t.x()).dot(uo - um);
+    return side > 0.0 ? 1.0 : (side < 0.0 ? -1.0 : 0.0);
+  }
 
   std::vector<Across> Sample(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double step) const {
     Eigen::Vector2d ua, ub;
@@ -92,12 +138,13 @@ class EdgeProbe {
     const int n = static_cast<int>(std::floor((b - a).norm() / step)) + 1;
     const Eigen::Vector2d t = (ub - ua).normalized();
     const Eigen::Vector2d normal(-t.y(), t.x());
-    const auto across = [&](const Eigen::Vector2d& uv) {
+    const auto signed_across = [&](const Eigen::Vector2d& uv) {
       const int u = static_cast<int>(std::lround(uv.x()));
       const int v = static_cast<int>(std::lround(uv.y()));
       if (u < 0 || v < 0 || u >= gx_.cols || v >= gx_.rows) return 0.0;
-      return std::abs(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
+      return static_cast<double>(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
     };
+    const auto across = [&](const Eigen::Vector2d& uv) { return std::abs(signed_across(uv)); };
     std::vector<Across> samples(static_cast<std::size_t>(n));
     for (int i = 0; i < n; ++i) {
       const Eigen::Vector2d xy = a + (b - a) * (n == 1 ? 0.5 : static_cast<double>(i) / (n - 1));
@@ -106,6 +153,10 @@ class EdgeProbe {
       Across& sample = samples[static_cast<std::size_t>(i)];
       sample.on_line = across(uv);
       sample.within_1px = std::max({sample.on_line, across(uv + normal), across(uv - normal)});
+      for (const Eigen::Vector2d& at : {uv, Eigen::Vector2d(uv + normal), Eigen::Vector2d(uv - normal)}) {
+        const double g = signed_across(at);
+        if (std::abs(g) > std::abs(sample.signed_within_1px)) sample.signed_within_1px = g;
+      }
     }
     return samples;
   }
@@ -159,6 +210,31 @@ std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame&
   return lowest;
 }
 
+// Like NeighbourSidesSupport, counting only samples whose gradient has the polarity the same
+// side shows along the face itself (from the corner margin to `near` less the corner margin):
+// a face brighter than the ground around it stays brighter past a shadow's edge across it
+// (ambient light), while the ground in the face's own shadow beyond its end is darker than
+// the ground beside it. 0 when a side shows no polarity along the face.
+double NeighbourSidesSupportOfFacePolarity(const EdgeProbe& probe, const Frame& f, int k,
+                                           double near, double far, double step,
+                                           double corner_margin) {
+  const Side s = SideOf(k);
+  const int other = 1 - s.axis;
+  double lowest = 1.0;
+  for (double across : {-1.0, 1.0}) {
+    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
+    const Eigen::Vector2d outward = across * f.axis[other];
+    const double face = probe.MeanOutwardGradient(
+        base - s.sign * (f.half[s.axis] - corner_margin) * f.axis[s.axis],
+        base + s.sign * (near - 2.0 * corner_margin) * f.axis[s.axis], outward, step);
+    if (face == 0.0) return 0.0;
+    lowest = std::min(lowest, probe.PolarSupport(base + s.sign * near * f.axis[s.axis],
+                                                 base + s.sign * far * f.axis[s.axis], outward,
+                                                 face > 0.0 ? 1.0 : -1.0, step));
+  }
+  return lowest;
+}
+
 bool Overlaps(const Frame& f, const Rectangle2D& other, double margin) {
   const cv::RotatedRect a(cv::Point2f(static_cast<float>(f.centre.x()), static_cast<float>(f.centre.y())),
                           cv::Size2f(static_cast<float>(2.0 * f.half[0] + 2.0 * margin),
@@ -200,6 +276,10 @@ int LowerPointsSeenThroughStrip(const Frame& f, int k, double near, double far, 
   }
   return count;
 }
+
+// How far past an edge (mm) a face's sides are sampled to tell the face's end from a line
+// across the face.
+constexpr double kSidesPastMm = 4.0;
 
 // Of the part's top-layer points (within top_layer_mm of `height`), the fraction more than
 // 1.5 mm beyond side k of frame f.
@@ -284,7 +364,25 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       before = std::max(before, SideSupport(probe, Extended(f, k, e), k, options));
     }
     report.end_support_before[k] = before;
-    if (before >= options.min_end_support) continue;
+    // Where the outward search starts (mm past the side).
+    double search_from = 1.0;
+    if (before >= options.min_end_support) {
+      // A side at an image edge ends the face unless the face's two sides go on past that
+      // edge in the image: then the edge is a line across the face - a taller neighbour's
+      // shadow's edge, a mark - and the face's end lies further out (`--min-gap 0`, seed
+      // 69049: the far third of a 64 x 49 mm top in a neighbour's shadow, its sides plain
+      // against the darker table, seen 51 mm long, 6.3 mm off). Sampled from the corner
+      // margin past the edge over kSidesPastMm.
+      if (!options.look_past_lines_on_face) continue;
+      const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
+      if (NeighbourSidesSupportOfFacePolarity(probe, f, k, past_from, past_from + kSidesPastMm,
+                                              step, options.corner_margin_mm) <
+          options.min_side_support) {
+        continue;
+      }
+      ++report.line_on_face;
+      search_from = 1.0 + options.corner_margin_mm;
+    }
     // A side that lies beyond the face's edge (points at the top height past it: mismatches,
     // a neighbour's points joined to the part) has no edge under it either, but the face's
     // edge lies inside it: moving it out would stretch the top further (default seeds 65019,
@@ -292,7 +390,8 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
     // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
     double inside = 0.0;
-    for (double e = -1.0 - step; e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
+    for (double e = -1.0 - step;
+         search_from == 1.0 && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
       if (SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support) {
         inside = e;
         break;
@@ -309,7 +408,6 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
       // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
       // a face that goes on past the edge goes on past the side as well.
-      constexpr double kSidesPastMm = 4.0;
       const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
       const std::optional<double> sides_past_edge = NeighbourSidesSupport(
           probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm), step);
@@ -323,7 +421,8 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
     const double from = f.half[s.axis];
     double found = 0.0;
-    for (double e = 1.0; e <= options.max_extension_mm + 1e-9 && admissible(k, e); e += step) {
+    for (double e = search_from; e <= options.max_extension_mm + 1e-9 && admissible(k, e);
+         e += step) {
       const Frame g = Extended(f, k, e);
       bool blocked = false;
       for (const Rectangle2D& other : others) blocked = blocked || Overlaps(g, other, 1.0);

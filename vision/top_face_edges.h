@@ -54,6 +54,11 @@ struct TopFaceEdgeOptions {
   /// 1 mm inside the extended rectangle): the table or a lower part seen where the extended
   /// face would hide them.
   int max_contradicting_points = 2;
+  /// A side already at an image edge moves out too when the face's two sides go on past that
+  /// edge in the image (on at least min_side_support of their samples over 4 mm): the edge is
+  /// a line across the face (a neighbour's shadow's edge, a mark), and the face's end is the
+  /// next edge out that they reach, under the tests above.
+  bool look_past_lines_on_face = true;
   std::string Check() const;
 };
 
@@ -65,6 +70,7 @@ struct TopFaceEdgeReport {
   int refused_by_points = 0;  ///< sides whose extension matched points contradicted
   int edge_inside = 0;        ///< sides beyond the face's edge (moved in, or kept when too
                               ///< many of the top's points, or the face's sides, go past it)
+  int line_on_face = 0;  ///< sides at an image edge the face's sides go on past
   bool swapped_sides_refused = false;  ///< no move: they would make the short side the long one
   /// Outward moves summed (inward ones count negative).
   double total_mm() const { return extension_mm[0] + extension_mm[1] + extension_mm[2] + extension_mm[3]; }

@@ -214,6 +214,9 @@ TEST(PositionSensing, BadOptionsAreRefused) {
   options.min_taller_touching_points = -1;
   EXPECT_NE(options.Check().find("min_taller_touching_points"), std::string::npos);
   options = CpuOptions();
+  options.shadow_strip_reach_mm = -1.0;
+  EXPECT_NE(options.Check().find("shadow_strip_reach_mm"), std::string::npos);
+  options = CpuOptions();
   options.pose.face_end_line_mm = -1.0;
   EXPECT_NE(options.Check().find("face_end_line_mm"), std::string::npos);
   EXPECT_THROW(SensePositionsFromMatches({}, calib::StereoCalibration{}, CpuOptions()),
@@ -896,6 +899,34 @@ TEST(PositionSensing, ABoxTopWhoseEndEdgesAreWeakIsCompletedFromTheImage) {
   neither.extend_tops_to_image_edges = false;
   const SensedTwice face_end = SenseTouchingWithAndWithout(69083, neither, without_face_ends);
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(face_end);
+}
+
+TEST(PositionSensing, ABoxTopEndingInANeighboursShadowIsCompletedFromTheImage) {
+  // Stress run, `render --seed 69049 --min-gap 0`: a 64 x 49 mm box, 43 mm tall, the far third
+  // of its top in a neighbour's shadow. The points stopped at the shadow's edge, a strong image
+  // edge, and it was seen 51 mm long, reported unflagged 6.3 mm off. The top's sides go on past
+  // that edge in the image, still brighter than the shadowed table, to its end
+  // (TopFaceEdgeOptions::look_past_lines_on_face).
+  PositionSensingOptions before = CpuOptions();
+  before.top_edges.look_past_lines_on_face = false;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(69049, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+}
+
+TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
+  // Stress run, `render --seed 179050 --min-gap 0`: a 75 x 50 mm box, 80 mm tall; the far 7 mm
+  // of its top lie in a 115 mm neighbour's shadow, as dark as the ground around, so its sides
+  // do not show there. Seen 68 mm long, reported unflagged 4.0 mm off. No point at any height
+  // lies in the 13 mm between its side and the taller part: nothing shows where the top ends
+  // (PositionSensingOptions::shadow_strip_reach_mm).
+  PositionSensingOptions before = CpuOptions();
+  before.shadow_strip_reach_mm = 0.0;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(179050, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+  double strip = 0.0;
+  for (const ObjectPose& pose : sensed.report.objects) strip = std::max(strip, pose.shadow_strip_mm);
+  EXPECT_GT(strip, 5.0);
+  EXPECT_LT(strip, 20.0);
 }
 
 TEST(PositionSensing, APartBesideAPieceOfItsTopLeftOutIsFlagged) {

@@ -55,6 +55,24 @@ DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0) {
   return d;
 }
 
+// Multiplies the image by `gain` over the world rectangle x0..x1, y0..y1 seen at the top's
+// height (a shadow), then takes the gradients again.
+void Shade(DrawnTop* d, double x0, double x1, double y0, double y1, double gain) {
+  std::vector<cv::Point> corners;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}}) {
+    const Eigen::Vector3d p = d->P * Eigen::Vector4d(x, y, d->height, 1.0);
+    corners.emplace_back(static_cast<int>(std::lround(p.x() / p.z())), static_cast<int>(std::lround(p.y() / p.z())));
+  }
+  cv::Mat mask = cv::Mat::zeros(d->image.size(), CV_8U);
+  cv::fillConvexPoly(mask, corners, cv::Scalar(255));
+  cv::Mat shaded;
+  d->image.convertTo(shaded, CV_8U, gain);
+  shaded.copyTo(d->image, mask);
+  cv::GaussianBlur(d->image, d->image, cv::Size(3, 3), 0.6);
+  cv::Sobel(d->image, d->gradient_x, CV_32F, 1, 0, 3);
+  cv::Sobel(d->image, d->gradient_y, CV_32F, 0, 1, 3);
+}
+
 // The pose of the face's points when its -x end was not matched: seen from x = -18 to +30.
 ObjectPose CutPose(double height) {
   ObjectPose pose;
@@ -86,6 +104,42 @@ TEST(TopFaceEdges, ACutEndMovesOutToTheFacesEdge) {
   // The three sides the points found lay at image edges already.
   EXPECT_GE(report.end_support_before[0], 0.7);
   EXPECT_LT(report.end_support_before[1], 0.7);
+}
+
+TEST(TopFaceEdges, ASideAtAShadowsEdgeAcrossTheFaceMovesOutToTheFacesEnd) {
+  // A neighbour's shadow covers the face's -x end (12 mm) and the ground beyond: the points
+  // stopped at the shadow's edge, a strong image edge. The face's sides go on past it, the
+  // face still brighter than the shadowed ground, to the face's end.
+  DrawnTop d = Draw();
+  Shade(&d, -45.0, -18.0, -25.0, 25.0, 0.35);
+  ObjectPose pose = CutPose(d.height);
+  const TopFaceEdgeReport report = Extend(d, &pose);
+  EXPECT_EQ(report.line_on_face, 1);
+  EXPECT_NEAR(pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(pose.centroid.x(), 0.0, 0.5);
+  // Without looking past such lines the side stays at the shadow's edge.
+  ObjectPose kept = CutPose(d.height);
+  TopFaceEdgeOptions options;
+  options.look_past_lines_on_face = false;
+  ExtendTopToImageEdges(&kept, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0,
+                        95.0, true, options);
+  EXPECT_DOUBLE_EQ(kept.top_rectangle.length, 48.0);
+}
+
+TEST(TopFaceEdges, TheFacesOwnShadowBeyondItsEndIsNoPartOfIt) {
+  // The whole face found; beyond its -x end its own shadow on the ground, 8 mm long and as wide
+  // as the face: the shadow's sides run on in line with the face's, but darker than the ground
+  // beside them where the face is brighter, so the end stays (gap0 seed 77067: a 69 x 45 mm
+  // top stretched 7.5 mm over its shadow, 4.1 mm off).
+  DrawnTop d = Draw();
+  Shade(&d, -38.0, -30.0, -15.0, 15.0, 0.4);
+  ObjectPose pose = CutPose(d.height);
+  pose.top_rectangle.centre.x() = 0.0;
+  pose.top_rectangle.length = 60.0;
+  pose.centroid.x() = 0.0;
+  const TopFaceEdgeReport report = Extend(d, &pose);
+  EXPECT_EQ(report.line_on_face, 0);
+  EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 60.0);
 }
 
 TEST(TopFaceEdges, AWholeTopStaysAsItIs) {
