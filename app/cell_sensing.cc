@@ -58,6 +58,11 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "their walls may hide a strip of its top. Pick tallest first and it is seen "
                   "whole later (0 flags none)")
       ->capture_default_str();
+  cmd->add_option("--shadow-strip-reach", sensing.shadow_strip_reach_mm,
+                  "Flag a box whose top has an empty strip, no point at any height, between a "
+                  "side and a taller part up to this far (mm): the taller part's shadow may hide "
+                  "the rest of its top (\"shadow_strip_mm\" says how wide; 0 flags none)")
+      ->capture_default_str();
   cmd->add_option("--image-border", sensing.image_border_px,
                   "Flag parts whose top face reaches within this many pixels of either image's "
                   "border: part of it may be out of view (\"at_image_border\": true; 0 flags none)")

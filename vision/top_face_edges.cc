@@ -1,5 +1,6 @@
 #include "vision/top_face_edges.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -280,6 +281,9 @@ int LowerPointsSeenThroughStrip(const Frame& f, int k, double near, double far, 
 // How far past an edge (mm) a face's sides are sampled to tell the face's end from a line
 // across the face.
 constexpr double kSidesPastMm = 4.0;
+// A face's end found past a line across it lies at least this far (mm) past the base edge of
+// a wall that would stand on that line.
+constexpr double kPastWallMm = 3.0;
 
 // Of the part's top-layer points (within top_layer_mm of `height`), the fraction more than
 // 1.5 mm beyond side k of frame f.
@@ -355,6 +359,21 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
     return best;
   };
+  // The image's camera centre, and how far (mm, in the plane of the top, outward) the wall
+  // under side k shows past it in the image: 0 where the camera does not see that wall. A
+  // wall's outline can run on in line with the face's sides, as bright as a shadowed face or
+  // brighter (default 65019, 65086: tops stretched over their walls' base edges), so a side
+  // looking past a line across the face never stops at the base edge of a wall standing on
+  // that line.
+  const Eigen::Vector3d camera = -P.leftCols<3>().inverse() * P.col(3);
+  const auto wall_seen_mm = [&](int k) {
+    const Side s = SideOf(k);
+    const Eigen::Vector2d outward = s.sign * f.axis[s.axis];
+    const Eigen::Vector2d mid = f.centre + f.half[s.axis] * outward;
+    if (!(camera.z() > pose->height_mm)) return 0.0;
+    // The base point under mid, seen through the plane of the top: mid + h / H (C - mid).
+    return std::max(0.0, pose->height_mm / camera.z() * (camera.head<2>() - mid).dot(outward));
+  };
   for (int k = 0; k < 4; ++k) {
     const Side s = SideOf(k);
     // Is the side already at an image edge (within 1 mm)?
@@ -366,7 +385,8 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     report.end_support_before[k] = before;
     // Where the outward search starts (mm past the side).
     double search_from = 1.0;
-    if (before >= options.min_end_support) {
+    const bool at_edge = before >= options.min_end_support;
+    if (at_edge) {
       // A side at an image edge ends the face unless the face's two sides go on past that
       // edge in the image: then the edge is a line across the face - a taller neighbour's
       // shadow's edge, a mark - and the face's end lies further out (`--min-gap 0`, seed
@@ -381,7 +401,8 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
         continue;
       }
       ++report.line_on_face;
-      search_from = 1.0 + options.corner_margin_mm;
+      // Past the base edge of a wall that would stand on this edge, by kPastWallMm.
+      search_from = std::max(1.0 + options.corner_margin_mm, wall_seen_mm(k) + kPastWallMm);
     }
     // A side that lies beyond the face's edge (points at the top height past it: mismatches,
     // a neighbour's points joined to the part) has no edge under it either, but the face's
@@ -391,7 +412,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
     double inside = 0.0;
     for (double e = -1.0 - step;
-         search_from == 1.0 && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
+         !at_edge && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
       if (SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support) {
         inside = e;
         break;
@@ -416,8 +437,20 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
           sides_past_edge.value_or(0.0) < options.min_side_support) {
         report.extension_mm[k] = best;
         f = g;
+        continue;
       }
-      continue;
+      // A line across the face just inside the side, the face's sides going on past it with
+      // the face's polarity: the face's end may lie further out (the points stopped near a
+      // shadow's edge, as above, a little past it; gap0 69049 seen through the scene's own
+      // cameras). Search out from the side.
+      if (!options.look_past_lines_on_face ||
+          NeighbourSidesSupportOfFacePolarity(probe, f, k, past_from, past_from + kSidesPastMm,
+                                              step, options.corner_margin_mm) <
+              options.min_side_support) {
+        continue;
+      }
+      ++report.line_on_face;
+      search_from = std::max(search_from, best + wall_seen_mm(k) + kPastWallMm);
     }
     const double from = f.half[s.axis];
     double found = 0.0;

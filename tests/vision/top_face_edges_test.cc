@@ -20,8 +20,10 @@ struct DrawnTop {
 // Pinhole camera at (0, 0, 700) looking down -z (x right, y down in the image flipped): f 1000 px.
 // `wall_mm` > 0 also draws a mid-grey band that far beyond the face's +x end, as wide as the
 // face: a wall seen beside the top, its base edge in line with nothing but the face's sides.
-DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0) {
+// `camera_x` moves the camera along x (a camera at x > length / 2 sees the +x wall).
+DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0, double camera_x = 0.0) {
   DrawnTop d;
+  d.camera_centre.x() = camera_x;
   Eigen::Matrix3d K;
   K << 1000, 0, 320, 0, 1000, 240, 0, 0, 1;
   Eigen::Matrix3d R;
@@ -211,8 +213,10 @@ TEST(TopFaceEdges, ASideBeyondTheFacesEdgeMovesInToIt) {
 TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedOut) {
   // As above, but a wall seen beside the face's +x end, in line with its sides, 11 mm long:
   // moving the side out would find the wall's base. The face's sides go on past its edge in
-  // the image (along the wall), so it does not move in either.
-  const DrawnTop d = Draw(60.0, 30.0, 11.0);
+  // the image (along the wall), so it does not move in either. The camera stands where it sees
+  // that wall 11 mm wide in the plane of the top (40 / 700 x (x - 30) = 11): a line across the
+  // face is looked past only beyond such a wall's base.
+  const DrawnTop d = Draw(60.0, 30.0, 11.0, 30.0 + 11.0 * 700.0 / 40.0);
   StretchedPose s = Stretched(d.height);
   StretchedPose outward_only = s;
   const TopFaceEdgeReport report = Extend(d, &s.pose, {}, s.points);
