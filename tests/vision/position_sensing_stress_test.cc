@@ -23,6 +23,13 @@
 //   HNNSTEREO_STRESS_NO_LEVEL_SPLIT=1  without SplitTopLevels (ObjectPoseOptions::
 //                                    min_top_level_difference_mm 0, for comparison)
 //   HNNSTEREO_STRESS_STOP=decisions  the decisions stop rule (hnn-default's) instead of the energy rule
+//   HNNSTEREO_STRESS_TOP_EDGES=0     without the image-edge fit of box tops
+//   HNNSTEREO_STRESS_LINES=0         the fit not looking past lines across a face
+//                                    (TopFaceEdgeOptions::look_past_lines_on_face)
+//   HNNSTEREO_STRESS_SHADOW=0        without the empty-strip flag (shadow_strip_reach_mm 0)
+//   HNNSTEREO_STRESS_SNAP, _SUBPIXEL, _LR=0|1  the match refinements (see below)
+//   HNNSTEREO_STRESS_KEEP=DIR        keep each scene as `render` writes it, in DIR/SEED
+//   HNNSTEREO_FILL=1                 one line per detected pose with its flags' inputs
 // Without HNNSTEREO_STRESS=1 the test is skipped.
 #include <gtest/gtest.h>
 
