@@ -226,9 +226,9 @@ struct ObjectPose {
   /// (PositionSensingOptions::extend_tops_to_image_edges); 0 = the rectangle of the points.
   double image_edge_moved_mm = 0.0;
   /// Width (mm) of the widest empty strip between a side of this box's top and a taller part
-  /// beyond it (set by SensePositions, PositionSensingOptions::max_shadow_strip_mm): no matched
+  /// beyond it (set by SensePositions, PositionSensingOptions::shadow_strip_reach_mm): no matched
   /// point at any height lies there, so nothing shows that the top ends at that side; the
-  /// taller part's shadow may hide the rest of it. 0 = none.
+  /// taller part's shadow may hide the rest of it. Implies merged. 0 = none.
   double shadow_strip_mm = 0.0;
   int points = 0;                ///< points of the cluster
   int top_points = 0;            ///< of which on the top face

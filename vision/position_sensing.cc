@@ -158,9 +158,9 @@ double RayEntryIntoConvexPolygon(const Eigen::Vector2d& origin, const Eigen::Vec
 // ObjectPose::shadow_strip_mm of a box top: per side, rays every 1 mm along the side (2 mm
 // from the corners) go outward to the nearest taller part's top outline (more than
 // `top_layer_mm` above this top; a part's walls stand under its outline) within
-// `max_strip_mm`; when at least half of them reach one,
-// the strip between is empty if at most `max_points` strong points at any height lie in it
-// (more than 1 mm from both). The widest such strip's median width; 0 when none.
+// `max_strip_mm`. When at least half of them reach one, more than 2 mm out (median), the
+// strip between is empty if at most `max_points` strong points at any height lie in it (more
+// than 1 mm from both). The widest such strip's median width; 0 when none.
 double EmptyStripToTallerPart(const std::vector<ObjectPose>& poses, std::size_t self,
                               const std::vector<Eigen::Vector3d>& points,
                               const std::vector<bool>& weak, double top_layer_mm,

@@ -54,10 +54,12 @@ struct TopFaceEdgeOptions {
   /// 1 mm inside the extended rectangle): the table or a lower part seen where the extended
   /// face would hide them.
   int max_contradicting_points = 2;
-  /// A side already at an image edge moves out too when the face's two sides go on past that
-  /// edge in the image (on at least min_side_support of their samples over 4 mm): the edge is
-  /// a line across the face (a neighbour's shadow's edge, a mark), and the face's end is the
-  /// next edge out that they reach, under the tests above.
+  /// A side at an image edge, or beyond one that the face's sides go past, moves out too when
+  /// the face's two sides go on past that edge in the image (on at least min_side_support of
+  /// their samples over 4 mm) with the polarity they show along the face (brighter or darker
+  /// than the ground beside it): the edge is a line across the face (a neighbour's shadow's
+  /// edge, a mark), and the face's end is the next edge out that they reach, under the tests
+  /// above, at least 3 mm past the base edge of a wall the camera would see on that line.
   bool look_past_lines_on_face = true;
   std::string Check() const;
 };
