@@ -72,6 +72,11 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                 "short, or stretched past the face, moves to the face's edge seen in the image "
                 "(default on; \"image_edge_moved_mm\" in the output says how far)")
       ->capture_default_str();
+  cmd->add_flag("--flag-unplaced,!--no-flag-unplaced", sensing.flag_unplaced_sides,
+                "Flag a box whose top keeps a side with no edge under it in the left image that "
+                "the image-edge fit could not place (default on; \"unplaced_sides\" in the "
+                "output)")
+      ->capture_default_str();
   cmd->add_flag("--subpixel,!--no-subpixel", sensing.refinement.epipolar_subpixel,
                 "Before triangulating, move each match's right point along its epipolar line to "
                 "the sub-pixel peak of ZNCC (it is snapped onto the line either way; default on: "

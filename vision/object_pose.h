@@ -225,6 +225,9 @@ struct ObjectPose {
   /// rectangle's sides to the left image's edges
   /// (PositionSensingOptions::extend_tops_to_image_edges); 0 = the rectangle of the points.
   double image_edge_moved_mm = 0.0;
+  /// Sides of this box's top with no edge under them in the left image that the image-edge
+  /// fit could not place either (TopFaceEdgeReport::unplaced_sides; set by SensePositions).
+  int unplaced_sides = 0;
   /// Width (mm) of the widest empty strip between a side of this box's top and a taller part
   /// beyond it (set by SensePositions, PositionSensingOptions::shadow_strip_reach_mm): no matched
   /// point at any height lies there, so nothing shows that the top ends at that side; the

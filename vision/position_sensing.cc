@@ -517,6 +517,11 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
           report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
           max_length, pose_options.centroid_from_rectangle, options.top_edges);
       report.objects[a].image_edge_moved_mm = extension.moved_mm();
+      report.objects[a].unplaced_sides = extension.unplaced_sides;
+      if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report.objects[a].merged) {
+        report.objects[a].merged = true;
+        ++report.merged;
+      }
     }
   }
   for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report.objects.size(); ++a) {
@@ -586,7 +591,8 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
          {"at_image_border", pose.at_image_border},
          {"piece_left_out", pose.piece_left_out},
          {"image_edge_moved_mm", pose.image_edge_moved_mm},
-         {"shadow_strip_mm", pose.shadow_strip_mm}});
+         {"shadow_strip_mm", pose.shadow_strip_mm},
+         {"unplaced_sides", pose.unplaced_sides}});
     if (pose.round) {
       objects.back()["top_circle"] = {
           {"centre", {pose.circle_centre.x(), pose.circle_centre.y()}},

@@ -158,6 +158,14 @@ struct PositionSensingOptions {
   /// 68 mm long, 4.0 mm off). Checked after the image-edge fit below. 0 disables.
   double shadow_strip_reach_mm = 20.0;
   int max_shadow_strip_points = 2;
+  /// A box whose top keeps a side with no edge under it in the left image, which the
+  /// image-edge fit below could place neither in nor out (ObjectPose::unplaced_sides), is
+  /// flagged merged: nothing in the image confirms where its face ends on that side, and the
+  /// points alone put it there (default 145009: a 69 x 56 mm top stretched 13 mm by points
+  /// beyond it, 5.5 mm off and turned 90 degrees; gap0 189079: a 68 x 48 mm top whose end
+  /// edge the matches missed, beside a taller cylinder that blocks the fit, 4.9 mm off).
+  /// Needs extend_tops_to_image_edges.
+  bool flag_unplaced_sides = true;
   /// Box tops fitted to the left image's edges (vision/top_face_edges.h): each side of a top's
   /// rectangle with no image edge under it moves, at the top's height, out to a straight image
   /// edge that its two neighbouring sides reach, when no matched point seen through the added

@@ -487,14 +487,23 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     report.extension_mm[k] = best;
     f = g;
   }
+  for (int k = 0; k < 4; ++k) {
+    if (report.end_support_before[k] < options.min_end_support && report.extension_mm[k] == 0.0) {
+      ++report.unplaced_sides;
+    }
+  }
   if (report.moved_mm() == 0.0) return report;
   if (f.half[1] > f.half[0]) {
     // The moves made the short side the long one: the yaw (the long side's direction) would
     // turn 90 degrees on edges that do not settle which side is longer (default seed 85026: a
     // 75 x 62 mm top of two touching parts). Keep the points' rectangle.
-    report = TopFaceEdgeReport{};
-    report.swapped_sides_refused = true;
-    return report;
+    TopFaceEdgeReport kept;
+    kept.swapped_sides_refused = true;
+    for (int k = 0; k < 4; ++k) {
+      kept.end_support_before[k] = report.end_support_before[k];
+      if (kept.end_support_before[k] < options.min_end_support) ++kept.unplaced_sides;
+    }
+    return kept;
   }
   Rectangle2D& r = pose->top_rectangle;
   r.centre = f.centre;

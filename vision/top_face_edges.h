@@ -72,6 +72,9 @@ struct TopFaceEdgeReport {
   int refused_by_points = 0;  ///< sides whose extension matched points contradicted
   int edge_inside = 0;        ///< sides beyond the face's edge (moved in, or kept when too
                               ///< many of the top's points, or the face's sides, go past it)
+  /// Sides with no image edge under them that stayed where the points put them: nothing in
+  /// the image confirms where the face ends there.
+  int unplaced_sides = 0;
   int line_on_face = 0;  ///< sides at an image edge the face's sides go on past
   bool swapped_sides_refused = false;  ///< no move: they would make the short side the long one
   /// Outward moves summed (inward ones count negative).

@@ -27,6 +27,7 @@
 //   HNNSTEREO_STRESS_LINES=0         the fit not looking past lines across a face
 //                                    (TopFaceEdgeOptions::look_past_lines_on_face)
 //   HNNSTEREO_STRESS_SHADOW=0        without the empty-strip flag (shadow_strip_reach_mm 0)
+//   HNNSTEREO_STRESS_UNPLACED=0      without the unplaced-side flag (flag_unplaced_sides)
 //   HNNSTEREO_STRESS_SNAP, _SUBPIXEL, _LR=0|1  the match refinements (see below)
 //   HNNSTEREO_STRESS_KEEP=DIR        keep each scene as `render` writes it, in DIR/SEED
 //   HNNSTEREO_FILL=1                 one line per detected pose with its flags' inputs
@@ -196,6 +197,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";
   sensing.top_edges.look_past_lines_on_face = Env("HNNSTEREO_STRESS_LINES", "1") != "0";
   if (Env("HNNSTEREO_STRESS_SHADOW", "1") == "0") sensing.shadow_strip_reach_mm = 0.0;
+  sensing.flag_unplaced_sides = Env("HNNSTEREO_STRESS_UNPLACED", "1") != "0";
   // Comparisons: HNNSTEREO_STRESS_SNAP=0|1, HNNSTEREO_STRESS_SUBPIXEL=0|1 (along the epipolar
   // line, after the snap), HNNSTEREO_STRESS_LR=0|1 (left-right check).
   sensing.refinement.epipolar_snap =
@@ -310,8 +312,9 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         if (!pose.merged && nearest_mm > 4.0) ++b.far_unflagged;
       }
       if (std::getenv("HNNSTEREO_FILL") != nullptr) {
-        std::printf("taller %d above %d ext %.1f shadow %.1f ", pose.taller_touching_points,
-                    pose.points_above_top, pose.image_edge_moved_mm, pose.shadow_strip_mm);
+        std::printf("taller %d above %d ext %.1f shadow %.1f unplaced %d ", pose.taller_touching_points,
+                    pose.points_above_top, pose.image_edge_moved_mm, pose.shadow_strip_mm,
+                    pose.unplaced_sides);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

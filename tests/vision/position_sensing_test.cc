@@ -929,6 +929,22 @@ TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
   EXPECT_LT(strip, 20.0);
 }
 
+TEST(PositionSensing, ABoxTopWithASideTheImageDoesNotPlaceIsFlagged) {
+  // Stress run, `render --seed 189079 --min-gap 0`: a 68 x 48 mm box, 48 mm tall, between a
+  // 90 mm box and a 75 mm cylinder; the matches missed its end edge beside them, and it was
+  // seen 58 mm long, reported unflagged 4.9 mm off. That side has no edge under it in the
+  // left image, and the image-edge fit could not move it out: the face's side along the
+  // cylinder shows no edge against the cylinder's bright top, and the cylinder's square
+  // blocks the move (PositionSensingOptions::flag_unplaced_sides).
+  PositionSensingOptions before = CpuOptions();
+  before.flag_unplaced_sides = false;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(189079, before);
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
+  int unplaced = 0;
+  for (const ObjectPose& pose : sensed.report.objects) unplaced += pose.unplaced_sides;
+  EXPECT_GE(unplaced, 1);
+}
+
 TEST(PositionSensing, APartBesideAPieceOfItsTopLeftOutIsFlagged) {
   // Stress run, `render --seed 69062 --min-gap 0`: a plain-looking 73 x 61 mm top, 116 mm tall,
   // fell apart into its far edge (84 points in a line) and the rest; 10 mismatches at 62 mm
