@@ -429,8 +429,18 @@ struct SensedTwice {
   TruthComparison truth, truth_before;
 };
 SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
-                                const PositionSensingOptions& before,
-                                const PositionSensingOptions& sensing = CpuOptions()) {
+                                PositionSensingOptions before,
+                                PositionSensingOptions sensing = CpuOptions()) {
+  // The two flags that read a top's outline against the image and its neighbours
+  // (flag_unplaced_sides, shadow_strip_reach_mm) also catch many of the failures the older
+  // rules were built on: where a comparison does not test one of them, it is off on both
+  // sides, so that each rule is shown to matter on its own seed.
+  if (before.flag_unplaced_sides == sensing.flag_unplaced_sides) {
+    before.flag_unplaced_sides = sensing.flag_unplaced_sides = false;
+  }
+  if (before.shadow_strip_reach_mm == sensing.shadow_strip_reach_mm) {
+    before.shadow_strip_reach_mm = sensing.shadow_strip_reach_mm = 0.0;
+  }
   const std::uint64_t seed = options.seed;
   SensedTwice sensed;
   sensed.scene = RenderScene(options);
@@ -1011,10 +1021,14 @@ TEST(PositionSensing, ATopCutByTheImageBorderIsFlagged) {
   const RenderedScene scene = RenderScene(options);
   const cv::Rect kept(0, 0, scene.left.cols, 430);
   const cv::Mat left = scene.left(kept).clone(), right = scene.right(kept).clone();
-  PositionSensingOptions before = CpuOptions();
+  // The outline flags off on both sides, as in SenseWithAndWithout: this rule alone.
+  PositionSensingOptions sensing = CpuOptions();
+  sensing.flag_unplaced_sides = false;
+  sensing.shadow_strip_reach_mm = 0.0;
+  PositionSensingOptions before = sensing;
   before.image_border_px = 0.0;
   const MatchReport match = MatchStereo(left, right, &scene.cameras, before.matcher, nullptr);
-  const PositionSensingReport with = SensePositionsFromMatches(match, scene.cameras, CpuOptions(), left);
+  const PositionSensingReport with = SensePositionsFromMatches(match, scene.cameras, sensing, left);
   const PositionSensingReport without = SensePositionsFromMatches(match, scene.cameras, before, left);
   EXPECT_EQ(FarUnflaggedPoses(with, scene), 0);
   EXPECT_GE(FarUnflaggedPoses(without, scene), 1) << "the failure the rule exists for";
