@@ -66,6 +66,7 @@ std::optional<TopTexture> ParseTopTexture(std::string_view name);
 struct SceneRenderOptions {
   std::uint64_t seed = 1;               ///< everything random derives from this
   int num_objects = 0;                  ///< parts on the table; 0 = drawn from [1, 9] by the seed
+                                        ///< (as many of them as fit the work area)
   PickCellCameraOptions cameras;
   double work_half_width_mm = 130.0;    ///< parts lie within work_centre +- this along x (mm)
   double work_half_depth_mm = 100.0;    ///< ... and +- this along y (mm)
