@@ -104,7 +104,7 @@ void AddRenderCommand(CLI::App& app) {
   cmd->add_option("--seed", args->options.seed, "Seed: the same seed gives the same scene")
       ->required();
   cmd->add_option("--objects", args->options.num_objects,
-                  "Number of parts (1-30; default: 1-9 drawn from the seed)")
+                  "Number of parts (1-30; default: 1-9 drawn from the seed, as many as fit the work area)")
       ->check(CLI::Range(1, 30));
   cmd->add_option("--out", args->out, "Output folder (created)")->required();
   cmd->add_option("--min-gap", args->options.min_gap_mm,
