@@ -1,6 +1,7 @@
 #include "vision/top_face_edges.h"
 
-#include <Eigen/LU>
+#include "calib/epipolar.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -196,42 +197,33 @@ double SideStrength(const EdgeProbe& probe, const Frame& f, int k, const TopFace
 
 // Edge support (the lower of the two) of the sides beside side k of frame f, along the stretch
 // from `near` to `far` (mm from f's centre along side k's outward axis); nullopt when that is
-// under two samples long.
+// under two samples long. With `face_corner_margin`, only samples whose gradient has the
+// polarity the same side shows along the face itself count (sampled from the corner margin to
+// `near` less the corner margin): a face brighter than the ground around it stays brighter past
+// a shadow's edge across it (ambient light), while the ground in the face's own shadow beyond
+// its end is darker than the ground beside it; 0 when a side shows no polarity along the face.
 std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame& f, int k,
-                                            double near, double far, double step) {
+                                            double near, double far, double step,
+                                            std::optional<double> face_corner_margin = std::nullopt) {
   if (far - near < 2.0 * step) return std::nullopt;
   const Side s = SideOf(k);
   const int other = 1 - s.axis;
   double lowest = 1.0;
   for (double across : {-1.0, 1.0}) {
     const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
-    lowest = std::min(lowest, probe.Support(base + s.sign * near * f.axis[s.axis],
-                                            base + s.sign * far * f.axis[s.axis], step));
-  }
-  return lowest;
-}
-
-// Like NeighbourSidesSupport, counting only samples whose gradient has the polarity the same
-// side shows along the face itself (from the corner margin to `near` less the corner margin):
-// a face brighter than the ground around it stays brighter past a shadow's edge across it
-// (ambient light), while the ground in the face's own shadow beyond its end is darker than
-// the ground beside it. 0 when a side shows no polarity along the face.
-double NeighbourSidesSupportOfFacePolarity(const EdgeProbe& probe, const Frame& f, int k,
-                                           double near, double far, double step,
-                                           double corner_margin) {
-  const Side s = SideOf(k);
-  const int other = 1 - s.axis;
-  double lowest = 1.0;
-  for (double across : {-1.0, 1.0}) {
-    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
+    const Eigen::Vector2d a = base + s.sign * near * f.axis[s.axis];
+    const Eigen::Vector2d b = base + s.sign * far * f.axis[s.axis];
+    if (!face_corner_margin) {
+      lowest = std::min(lowest, probe.Support(a, b, step));
+      continue;
+    }
+    const double margin = *face_corner_margin;
     const Eigen::Vector2d outward = across * f.axis[other];
     const double face = probe.MeanOutwardGradient(
-        base - s.sign * (f.half[s.axis] - corner_margin) * f.axis[s.axis],
-        base + s.sign * (near - 2.0 * corner_margin) * f.axis[s.axis], outward, step);
+        base - s.sign * (f.half[s.axis] - margin) * f.axis[s.axis],
+        base + s.sign * (near - 2.0 * margin) * f.axis[s.axis], outward, step);
     if (face == 0.0) return 0.0;
-    lowest = std::min(lowest, probe.PolarSupport(base + s.sign * near * f.axis[s.axis],
-                                                 base + s.sign * far * f.axis[s.axis], outward,
-                                                 face > 0.0 ? 1.0 : -1.0, step));
+    lowest = std::min(lowest, probe.PolarSupport(a, b, outward, face > 0.0 ? 1.0 : -1.0, step));
   }
   return lowest;
 }
@@ -365,7 +357,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
   // brighter (default 65019, 65086: tops stretched over their walls' base edges), so a side
   // looking past a line across the face never stops at the base edge of a wall standing on
   // that line.
-  const Eigen::Vector3d camera = -P.leftCols<3>().inverse() * P.col(3);
+  const Eigen::Vector3d camera = calib::CameraCentre(P);
   const auto wall_seen_mm = [&](int k) {
     const Side s = SideOf(k);
     const Eigen::Vector2d outward = s.sign * f.axis[s.axis];
@@ -395,8 +387,9 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // margin past the edge over kSidesPastMm.
       if (!options.look_past_lines_on_face) continue;
       const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
-      if (NeighbourSidesSupportOfFacePolarity(probe, f, k, past_from, past_from + kSidesPastMm,
-                                              step, options.corner_margin_mm) <
+      if (NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
+                                options.corner_margin_mm)
+                  .value_or(0.0) <
           options.min_side_support) {
         continue;
       }
@@ -444,8 +437,9 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // shadow's edge, as above, a little past it; gap0 69049 seen through the scene's own
       // cameras). Search out from the side.
       if (!options.look_past_lines_on_face ||
-          NeighbourSidesSupportOfFacePolarity(probe, f, k, past_from, past_from + kSidesPastMm,
-                                              step, options.corner_margin_mm) <
+          NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
+                                options.corner_margin_mm)
+                  .value_or(0.0) <
               options.min_side_support) {
         continue;
       }
