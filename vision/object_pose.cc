@@ -792,7 +792,8 @@ bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options, int* merges,
-                                                  const std::vector<bool>* weak) {
+                                                  const std::vector<bool>* weak,
+                                                  const PiecesSeenApart& seen_apart) {
   if (weak != nullptr && weak->size() != points_in_world.size()) {
     throw std::invalid_argument("MergeTopFaceIslands: weak must have one flag per point");
   }
@@ -849,7 +850,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
                       static_cast<double>(clusters[small].size() + clusters[large].size()) ||
               PointsSeenInTheGap(points_in_world, cluster_of_point, static_cast<int>(small),
                                  static_cast<int>(large), joint, top_hulls[small], top_hulls[large],
-                                 height, options, weak) > options.max_gap_points) {
+                                 height, options, weak) > options.max_gap_points ||
+              (seen_apart && seen_apart(tops[small], tops[large], height))) {
             continue;
           }
         }

@@ -6,6 +6,7 @@
 // Pure geometry over Eigen: no I/O.
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <optional>
@@ -294,11 +295,19 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 /// round, the other lies
 /// on its circle (within top_layer_mm). Two parts standing apart show the table, their sides or
 /// other parts in the gap between them.
+///
+/// `seen_apart` (optional) vetoes the join of two pieces that lie apart (neither's centre in the
+/// other's hull) when it returns true for their top points (table plane, mm) at their mean top
+/// height: the image shows them as two faces (see JointSidesAcrossGap in top_face_edges.h).
+using PiecesSeenApart = std::function<bool(const std::vector<Eigen::Vector2d>& piece_a,
+                                           const std::vector<Eigen::Vector2d>& piece_b,
+                                           double height_mm)>;
 std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vector3d>& points_in_world,
                                                   std::vector<std::vector<int>> clusters,
                                                   const ObjectPoseOptions& options = {},
                                                   int* merges = nullptr,
-                                                  const std::vector<bool>* weak = nullptr);
+                                                  const std::vector<bool>* weak = nullptr,
+                                                  const PiecesSeenApart& seen_apart = nullptr);
 
 /// Splits each cluster whose top layer holds two heights side by side (touching parts of unequal
 /// height that the clustering joined; see ObjectPoseOptions::min_top_level_difference_mm) into

@@ -273,6 +273,7 @@ std::string PositionSensingOptions::Check() const {
     return "min_edge_epipolar_angle_deg must be in [0, 90)";
   }
   if (min_strong_points < 1) return "min_strong_points must be >= 1";
+  if (min_strong_points_whole_top < 0) return "min_strong_points_whole_top must be >= 0";
   if (!(min_top_fraction >= 0.0 && min_top_fraction <= 1.0)) return "min_top_fraction must be in [0, 1]";
   if (!(min_top_width_mm >= 0.0)) return "min_top_width_mm must be >= 0";
   if (!(min_top_fill >= 0.0 && min_top_fill <= 1.0)) return "min_top_fill must be in [0, 1]";
@@ -401,9 +402,22 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   if (options.clustering == ClusteringMethod::kGrid) {
     if (options.merge_top_face_islands) {
+      PiecesSeenApart seen_apart = nullptr;
+      if (options.join_islands_seen_as_one_face && !left_grey.empty()) {
+        if (gradient_x.empty()) {
+          cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
+          cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
+        }
+        seen_apart = [&](const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b,
+                         double height) {
+          const std::optional<double> support = JointSidesAcrossGap(
+              a, b, height, calibration.P1, gradient_x, gradient_y, options.top_edges);
+          return support && *support < options.top_edges.min_side_support;
+        };
+      }
       report.clustering.clusters = MergeTopFaceIslands(
           report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
-          &report.weak);
+          &report.weak, seen_apart);
     }
     // Touching parts of unequal height the grid joined (never a pose between them).
     report.clustering.clusters = SplitTopLevels(report.points_in_world, report.clustering.clusters,
@@ -417,7 +431,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   std::vector<ObjectPose> narrow_pieces;  // dropped by min_top_width_mm
   std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
-    bool small = static_cast<int>(cluster.size()) < options.min_strong_points;
+    // A small part is kept for now when it may be a whole top face (dropped below if flagged).
+    bool small = static_cast<int>(cluster.size()) < options.min_strong_points &&
+                 !(options.min_strong_points_whole_top > 0 &&
+                   static_cast<int>(cluster.size()) >= options.min_strong_points_whole_top);
     if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
       ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
       if (pose.top_points < options.min_top_fraction * pose.points) {
@@ -441,98 +458,116 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     }
     return small;
   });
-  report.objects =
-      EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
-  CountTouchingPoints(report.points_in_world, report.weak,
-                      {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
-                      options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
-                      &report.objects);
-  for (ObjectPose& pose : report.objects) {
-    // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
-    pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
-                  (pose.top_roundness > options.max_round_top_roundness ||
-                   pose.top_fill < options.min_round_top_fill);
-    // Beside a neighbour, only a full rectangle (or a round top) is trusted.
-    const bool touching =
-        pose.touching_points >= options.touch_min_points ||
-        (options.min_points_above_top > 0 && pose.points_above_top >= options.min_points_above_top);
-    if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
-      pose.merged = true;
-    }
-    // A taller part touching a box hides a strip of its top from the camera on its side; cut
-    // straight, the rest is still a full rectangle.
-    if (!pose.round && options.min_taller_touching_points > 0 &&
-        pose.taller_touching_points >= options.min_taller_touching_points) {
-      pose.merged = true;
-    }
-    // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
-    if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
-      pose.merged = true;
-    }
-    // A top longer than any part is parts joined.
-    if (options.max_whole_top_length_mm > 0.0 &&
-        pose.top_rectangle.length > options.max_whole_top_length_mm) {
-      pose.merged = true;
-    }
-    // A line of points at this top's height beside it, left out as too narrow to be a part,
-    // may be a piece of this top the island merge did not join.
-    for (const ObjectPose& piece : narrow_pieces) {
-      if (options.left_out_piece_reach_mm > 0.0 &&
-          std::abs(piece.height_mm - pose.height_mm) <= pose_options.top_layer_mm &&
-          RectangleGap(piece.top_rectangle, pose.top_rectangle) <= options.left_out_piece_reach_mm) {
-        pose.piece_left_out = true;
+  // Poses and their flags. A part below min_strong_points is reported only when no check
+  // flags it; one that is flagged is dropped and the poses are estimated again without it,
+  // so that its points flag no neighbour (touching points, the image fit's blocking).
+  for (bool again = true; again;) {
+    report.merged = 0;
+    report.objects =
+        EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
+    CountTouchingPoints(report.points_in_world, report.weak,
+                        {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
+                        options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
+                        &report.objects);
+    for (ObjectPose& pose : report.objects) {
+      // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
+      pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
+                    (pose.top_roundness > options.max_round_top_roundness ||
+                     pose.top_fill < options.min_round_top_fill);
+      // Beside a neighbour, only a full rectangle (or a round top) is trusted.
+      const bool touching =
+          pose.touching_points >= options.touch_min_points ||
+          (options.min_points_above_top > 0 && pose.points_above_top >= options.min_points_above_top);
+      if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
         pose.merged = true;
       }
-    }
-    // A top cut by the field of view is a piece of a face.
-    if (options.image_border_px > 0.0 && !left_grey.empty()) {
-      pose.at_image_border =
-          OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
-      if (pose.at_image_border) pose.merged = true;
-    }
-    if (pose.merged) ++report.merged;
-  }
-  if (options.extend_tops_to_image_edges && !left_grey.empty()) {
-    if (gradient_x.empty()) {
-      cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
-      cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
-    }
-    const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
-                                                         calib::CameraCentre(calibration.P2)};
-    for (std::size_t a = 0; a < report.objects.size(); ++a) {
-      // The other parts' tops (a round one as its circle's square), which no side may enter.
-      std::vector<Rectangle2D> others;
-      for (std::size_t b = 0; b < report.objects.size(); ++b) {
-        if (b == a) continue;
-        const ObjectPose& other = report.objects[b];
-        const double diameter = 2.0 * other.circle_radius;
-        others.push_back(other.round ? Rectangle2D{other.circle_centre, diameter, diameter, 0.0}
-                                     : other.top_rectangle);
+      // A taller part touching a box hides a strip of its top from the camera on its side; cut
+      // straight, the rest is still a full rectangle.
+      if (!pose.round && options.min_taller_touching_points > 0 &&
+          pose.taller_touching_points >= options.min_taller_touching_points) {
+        pose.merged = true;
       }
-      const double max_length = options.max_whole_top_length_mm > 0.0
-                                    ? options.max_whole_top_length_mm
-                                    : std::numeric_limits<double>::infinity();
-      const TopFaceEdgeReport extension = ExtendTopToImageEdges(
-          &report.objects[a], calibration.P1, gradient_x, gradient_y, others,
-          report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
-          max_length, pose_options.centroid_from_rectangle, options.top_edges);
-      report.objects[a].image_edge_moved_mm = extension.moved_mm();
-      report.objects[a].unplaced_sides = extension.unplaced_sides;
-      if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report.objects[a].merged) {
-        report.objects[a].merged = true;
+      // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
+      if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
+        pose.merged = true;
+      }
+      // A top longer than any part is parts joined.
+      if (options.max_whole_top_length_mm > 0.0 &&
+          pose.top_rectangle.length > options.max_whole_top_length_mm) {
+        pose.merged = true;
+      }
+      // A line of points at this top's height beside it, left out as too narrow to be a part,
+      // may be a piece of this top the island merge did not join.
+      for (const ObjectPose& piece : narrow_pieces) {
+        if (options.left_out_piece_reach_mm > 0.0 &&
+            std::abs(piece.height_mm - pose.height_mm) <= pose_options.top_layer_mm &&
+            RectangleGap(piece.top_rectangle, pose.top_rectangle) <= options.left_out_piece_reach_mm) {
+          pose.piece_left_out = true;
+          pose.merged = true;
+        }
+      }
+      // A top cut by the field of view is a piece of a face.
+      if (options.image_border_px > 0.0 && !left_grey.empty()) {
+        pose.at_image_border =
+            OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
+        if (pose.at_image_border) pose.merged = true;
+      }
+      if (pose.merged) ++report.merged;
+    }
+    if (options.extend_tops_to_image_edges && !left_grey.empty()) {
+      if (gradient_x.empty()) {
+        cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
+        cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
+      }
+      const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
+                                                           calib::CameraCentre(calibration.P2)};
+      for (std::size_t a = 0; a < report.objects.size(); ++a) {
+        // The other parts' tops (a round one as its circle's square), which no side may enter.
+        std::vector<Rectangle2D> others;
+        for (std::size_t b = 0; b < report.objects.size(); ++b) {
+          if (b == a) continue;
+          const ObjectPose& other = report.objects[b];
+          const double diameter = 2.0 * other.circle_radius;
+          others.push_back(other.round ? Rectangle2D{other.circle_centre, diameter, diameter, 0.0}
+                                       : other.top_rectangle);
+        }
+        const double max_length = options.max_whole_top_length_mm > 0.0
+                                      ? options.max_whole_top_length_mm
+                                      : std::numeric_limits<double>::infinity();
+        const TopFaceEdgeReport extension = ExtendTopToImageEdges(
+            &report.objects[a], calibration.P1, gradient_x, gradient_y, others,
+            report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
+            max_length, pose_options.centroid_from_rectangle, options.top_edges);
+        report.objects[a].image_edge_moved_mm = extension.moved_mm();
+        report.objects[a].unplaced_sides = extension.unplaced_sides;
+        if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report.objects[a].merged) {
+          report.objects[a].merged = true;
+          ++report.merged;
+        }
+      }
+    }
+    for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report.objects.size(); ++a) {
+      ObjectPose& pose = report.objects[a];
+      if (pose.round) continue;
+      pose.shadow_strip_mm = EmptyStripToTallerPart(
+          report.objects, a, report.points_in_world, report.weak, pose_options.top_layer_mm,
+          options.shadow_strip_reach_mm, options.max_shadow_strip_points);
+      if (pose.shadow_strip_mm > 0.0 && !pose.merged) {
+        pose.merged = true;
         ++report.merged;
       }
     }
-  }
-  for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report.objects.size(); ++a) {
-    ObjectPose& pose = report.objects[a];
-    if (pose.round) continue;
-    pose.shadow_strip_mm = EmptyStripToTallerPart(
-        report.objects, a, report.points_in_world, report.weak, pose_options.top_layer_mm,
-        options.shadow_strip_reach_mm, options.max_shadow_strip_points);
-    if (pose.shadow_strip_mm > 0.0 && !pose.merged) {
-      pose.merged = true;
-      ++report.merged;
+    again = false;
+    for (const ObjectPose& pose : report.objects) {
+      if (pose.points >= options.min_strong_points || !pose.merged) continue;
+      ++report.small_flagged;
+      report.clustering.n_in_small_clusters += pose.points;
+      for (int i : pose.point_indices) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
+      std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
+        return !cluster.empty() && !pose.point_indices.empty() &&
+               cluster.front() == pose.point_indices.front();
+      });
+      again = true;
     }
   }
   report.timing_ms.pose = MillisecondsSince(start);
@@ -623,6 +658,7 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
             {"top_level_splits", report.top_level_splits},
             {"without_top_face", report.without_top_face},
             {"narrow_top_face", report.narrow_top_face},
+            {"small_flagged", report.small_flagged},
             {"merged", report.merged}}},
           {"timing_ms",
            {{"match", report.timing_ms.match},

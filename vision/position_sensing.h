@@ -50,10 +50,27 @@ struct PositionSensingOptions {
   /// Grid clustering: join islands of points inside a larger part's top face at its height
   /// (engraved marks far from the outline); see MergeTopFaceIslands.
   bool merge_top_face_islands = true;
+  /// ... unless the left image shows the two pieces as two faces: the joint top's sides that
+  /// would run across the gap between them keep their face's polarity on less than
+  /// top_edges.min_side_support of that gap (vision/top_face_edges.h, JointSidesAcrossGap).
+  /// Two parts in a row at one height, each its own face, show the ground, their walls and
+  /// shadows there (default seed 155183: two boxes 17 mm apart joined into one flagged top, both
+  /// missed); one plain face seen as its two ends shows its sides.
+  bool join_islands_seen_as_one_face = true;
   /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
   /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had
   /// 20-50 strong points, true ones well over 100.
   int min_strong_points = 60;
+  /// ... except that a part with at least this many strong points (and fewer than
+  /// min_strong_points) is kept when nothing flags it: after every check below (fill, width,
+  /// touching, image fit, shadow strip...) it is a whole top face, neither merged nor cut. A
+  /// small box whose long sides run along the epipolar lines keeps only its short sides' points
+  /// strong (default seed 155008: a 54 x 29 x 25 mm box with 51 strong points, its top a full
+  /// 54.2 x 28.4 mm rectangle); the false parts of shadow and occlusion boundaries under 60
+  /// points (default 135000-135199, 155000-155199: 20-57 points) are all slivers or partial
+  /// outlines that the checks flag. Half of min_strong_points, set once; 0 or anything >=
+  /// min_strong_points turns the exception off.
+  int min_strong_points_whole_top = 30;
   /// Parts whose top layer (ObjectPoseOptions::top_layer_mm) holds fewer than this fraction of
   /// their strong points are dropped: a cluster spread over heights is a vertical structure (a
   /// part's side seen against its shadow), not a top face. Seeds 100-119: true parts 0.89-1.0,
@@ -212,6 +229,7 @@ struct PositionSensingReport {
   int top_level_splits = 0;                      ///< clusters split by SplitTopLevels
   int without_top_face = 0;                      ///< clusters dropped by min_top_fraction
   int narrow_top_face = 0;                       ///< clusters dropped by min_top_width_mm
+  int small_flagged = 0;  ///< small parts dropped as flagged (min_strong_points_whole_top)
   int merged = 0;                                ///< parts flagged merged (min_top_fill)
   std::vector<ObjectPose> objects;               ///< tallest first
   PositionSensingTiming timing_ms;

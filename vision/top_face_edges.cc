@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <opencv2/imgproc.hpp>
@@ -508,6 +509,61 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     pose->centroid.y() = r.centre.y();
   }
   return report;
+}
+
+std::optional<double> JointSidesAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
+                                          const std::vector<Eigen::Vector2d>& piece_b,
+                                          double height_mm, const Eigen::Matrix<double, 3, 4>& P,
+                                          const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                          const TopFaceEdgeOptions& options) {
+  if (piece_a.empty() || piece_b.empty() || gradient_x.empty()) return std::nullopt;
+  std::vector<Eigen::Vector2d> joint = piece_a;
+  joint.insert(joint.end(), piece_b.begin(), piece_b.end());
+  const Frame f = FrameOf(MinAreaRectangle(joint));
+  // Each piece's extent along each axis of the joint rectangle (from its centre).
+  const auto extent = [&](const std::vector<Eigen::Vector2d>& piece, int axis) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const Eigen::Vector2d& p : piece) {
+      const double t = (p - f.centre).dot(f.axis[axis]);
+      lo = std::min(lo, t);
+      hi = std::max(hi, t);
+    }
+    return std::pair<double, double>(lo, hi);
+  };
+  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far].
+  int along = -1;
+  double near = 0.0, far = 0.0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const auto [a_lo, a_hi] = extent(piece_a, axis);
+    const auto [b_lo, b_hi] = extent(piece_b, axis);
+    const double from = a_hi < b_lo ? a_hi : b_hi;
+    const double to = a_hi < b_lo ? b_lo : a_lo;
+    if (to - from > far - near) {
+      along = axis;
+      near = from;
+      far = to;
+    }
+  }
+  near += options.corner_margin_mm;
+  far -= options.corner_margin_mm;
+  if (along < 0 || far - near < 2.0 * options.step_mm) return std::nullopt;
+  const EdgeProbe probe(P, gradient_x, gradient_y, height_mm, options.min_edge_gradient);
+  const int across_axis = 1 - along;
+  double best = 0.0;
+  for (double across : {-1.0, 1.0}) {
+    const Eigen::Vector2d base = f.centre + across * f.half[across_axis] * f.axis[across_axis];
+    const Eigen::Vector2d outward = across * f.axis[across_axis];
+    // The side's polarity: its mean over the whole side, the pieces' stretches (often longer
+    // than the gap) included; a piece may be an edge strip too thin to show it alone.
+    const double end = f.half[along] - options.corner_margin_mm;
+    const double face = probe.MeanOutwardGradient(base - end * f.axis[along],
+                                                  base + end * f.axis[along], outward,
+                                                  options.step_mm);
+    if (face == 0.0) continue;
+    best = std::max(best, probe.PolarSupport(base + near * f.axis[along], base + far * f.axis[along],
+                                             outward, face > 0.0 ? 1.0 : -1.0, options.step_mm));
+  }
+  return best;
 }
 
 }  // namespace hnnstereo::vision

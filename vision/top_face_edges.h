@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -103,5 +104,22 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
                                         double top_layer_mm, double max_length_mm,
                                         bool centroid_from_rectangle,
                                         const TopFaceEdgeOptions& options = {});
+
+/// Whether two pieces of top-face points at one height (table plane, mm) that lie apart are
+/// one face in the image: the sides of their joint minimum-area rectangle that run across the
+/// gap between them, sampled over that gap (less the corner margin at each end) in one image
+/// seen through `P`, keep the polarity they show on the whole (brighter or darker than the
+/// ground beside them). Returns the higher of the two sides' fractions of such samples
+/// (PolarSupport, options.min_edge_gradient); nullopt when the pieces do not lie apart along
+/// an axis of that rectangle by more than twice the corner margin. One plain face seen as its
+/// two strong ends keeps its sides across the gap (a shadow across it dims but does not hide
+/// them: ambient light); two parts in a row show the ground, their walls and shadows there
+/// (default seed 155183: boxes 47 x 32 and 61 x 42 mm, 50 and 48 mm tall, 17 mm apart, joined
+/// into one 126 x 43 mm top).
+std::optional<double> JointSidesAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
+                                          const std::vector<Eigen::Vector2d>& piece_b,
+                                          double height_mm, const Eigen::Matrix<double, 3, 4>& P,
+                                          const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                          const TopFaceEdgeOptions& options = {});
 
 }  // namespace hnnstereo::vision

@@ -28,6 +28,11 @@
 //                                    (TopFaceEdgeOptions::look_past_lines_on_face)
 //   HNNSTEREO_STRESS_SHADOW=0        without the empty-strip flag (shadow_strip_reach_mm 0)
 //   HNNSTEREO_STRESS_UNPLACED=0      without the unplaced-side flag (flag_unplaced_sides)
+//   HNNSTEREO_STRESS_JOIN_IMAGE=0    island joins without the image's veto
+//                                    (join_islands_seen_as_one_face)
+//   HNNSTEREO_STRESS_WHOLE_TOP_MIN=0 drop every part under min_strong_points, flagged or not
+//                                    (min_strong_points_whole_top 0)
+//   HNNSTEREO_STRESS_MIN_STRONG=N, HNNSTEREO_STRESS_MIN_TOP_FRACTION=F  those drop limits
 //   HNNSTEREO_STRESS_SNAP, _SUBPIXEL, _LR=0|1  the match refinements (see below)
 //   HNNSTEREO_STRESS_KEEP=DIR        keep each scene as `render` writes it, in DIR/SEED
 //   HNNSTEREO_FILL=1                 one line per detected pose with its flags' inputs
@@ -191,10 +196,16 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   if (Env("HNNSTEREO_STRESS_NO_GAP_GUARD", "0") == "1") {
     sensing.pose.max_gap_points = std::numeric_limits<int>::max();
   }
-  // Debugging: keep small parts (HNNSTEREO_STRESS_MIN_STRONG=1) to see where a face's pieces go.
-  sensing.min_strong_points = std::stoi(Env("HNNSTEREO_STRESS_MIN_STRONG", "60"));
-  if (sensing.min_strong_points < 60) sensing.min_top_fraction = 0.0;
+  // Debugging: keep small parts (HNNSTEREO_STRESS_MIN_STRONG=1 HNNSTEREO_STRESS_MIN_TOP_FRACTION=0)
+  // to see where a face's pieces go.
+  sensing.min_strong_points = std::stoi(
+      Env("HNNSTEREO_STRESS_MIN_STRONG", std::to_string(sensing.min_strong_points)));
+  sensing.min_strong_points_whole_top = std::stoi(Env(
+      "HNNSTEREO_STRESS_WHOLE_TOP_MIN", std::to_string(sensing.min_strong_points_whole_top)));
+  sensing.min_top_fraction = std::stod(
+      Env("HNNSTEREO_STRESS_MIN_TOP_FRACTION", std::to_string(sensing.min_top_fraction)));
   if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
+  sensing.join_islands_seen_as_one_face = Env("HNNSTEREO_STRESS_JOIN_IMAGE", "1") != "0";
   sensing.pose.face_end_line_mm =
       std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
   sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";
@@ -318,6 +329,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
         std::printf("taller %d above %d ext %.1f shadow %.1f unplaced %d ", pose.taller_touching_points,
                     pose.points_above_top, pose.image_edge_moved_mm, pose.shadow_strip_mm,
                     pose.unplaced_sides);
+        std::printf("points %d paired %d ", pose.points, paired[d] ? 1 : 0);
         std::printf("fill %.3f %s %.1f touching %d rect %.1f x %.1f roundness %.3f merged %d seed %d\n",
                     pose.top_fill, pose.round ? "round" : "rect", nearest_mm, pose.touching_points,
                     pose.top_rectangle.length, pose.top_rectangle.width, pose.top_roundness,

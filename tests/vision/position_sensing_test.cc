@@ -503,6 +503,35 @@ TEST(PositionSensing, TwoPartsShowingTheTableBetweenThemStayTwo) {
   ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the failure the gap-point guard exists for");
 }
 
+TEST(PositionSensing, TwoBoxesInARowThatTheImageShowsApartStayTwo) {
+  // Stress run, `render --seed 155183`: boxes 47 x 32 and 61 x 42 mm, 50 and 48 mm tall, in a
+  // row 17 mm apart with nearly the same yaw. The table in the gap lies in shadow (no points),
+  // and the island merge joined them into one flagged 126 x 43 mm top between them: both
+  // missed. The joint top's sides do not run across the gap in the left image
+  // (join_islands_seen_as_one_face).
+  PositionSensingOptions before = CpuOptions();
+  before.join_islands_seen_as_one_face = false;
+  const SensedTwice sensed = SenseWithAndWithout(155183, before);
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the join the image vetoes");
+}
+
+TEST(PositionSensing, ASmallBoxWithWeakLongSidesIsKeptWhenNothingFlagsIt) {
+  // Stress run, `render --seed 155008`: a 54 x 29 mm box, 25 mm tall, its long sides along the
+  // epipolar lines, so only its short sides' points are strong: 51, under min_strong_points,
+  // and it was dropped (missed). Its top is a full 54 x 28 mm rectangle that no check flags
+  // (min_strong_points_whole_top).
+  PositionSensingOptions before = CpuOptions();
+  before.min_strong_points_whole_top = 0;
+  const SensedTwice sensed = SenseWithAndWithout(155008, before);
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the small part kept");
+  // The part kept is one under min_strong_points, and it is sent (not flagged).
+  int small_sent = 0;
+  for (const ObjectPose& pose : sensed.report.objects) {
+    if (pose.points < PositionSensingOptions{}.min_strong_points && !pose.merged) ++small_sent;
+  }
+  EXPECT_EQ(small_sent, 1);
+}
+
 TEST(PositionSensing, APlainTopFaceSeenAsItsTwoStrongEdgesIsOnePart) {
   // Stress run, hard profile (`render --seed 6017 --noise 6 --blur 1.0 --texture plain`): a
   // 43 x 35 mm box, 26 mm tall, seen only as its two 43 mm edges (strips 1 mm wide) 33 mm
