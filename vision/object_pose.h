@@ -298,7 +298,7 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
 ///
 /// `seen_apart` (optional) vetoes the join of two pieces that lie apart (neither's centre in the
 /// other's hull) when it returns true for their top points (table plane, mm) at their mean top
-/// height: the image shows them as two faces (see JointSidesAcrossGap in top_face_edges.h).
+/// height: the image shows them as two faces (see LookAcrossGap in top_face_edges.h).
 using PiecesSeenApart = std::function<bool(const std::vector<Eigen::Vector2d>& piece_a,
                                            const std::vector<Eigen::Vector2d>& piece_b,
                                            double height_mm)>;

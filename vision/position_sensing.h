@@ -50,12 +50,14 @@ struct PositionSensingOptions {
   /// Grid clustering: join islands of points inside a larger part's top face at its height
   /// (engraved marks far from the outline); see MergeTopFaceIslands.
   bool merge_top_face_islands = true;
-  /// ... unless the left image shows the two pieces as two faces: the joint top's sides that
-  /// would run across the gap between them keep their face's polarity on less than
-  /// top_edges.min_side_support of that gap (vision/top_face_edges.h, JointSidesAcrossGap).
-  /// Two parts in a row at one height, each its own face, show the ground, their walls and
-  /// shadows there (default seed 155183: two boxes 17 mm apart joined into one flagged top, both
-  /// missed); one plain face seen as its two ends shows its sides.
+  /// ... unless the left image shows the two pieces as two faces (vision/top_face_edges.h,
+  /// LookAcrossGap): the joint top's sides that would run across the gap between them keep
+  /// their face's polarity on less than top_edges.min_side_support of it, and both pieces end
+  /// at an edge facing the other, both brighter than the gap (or both darker), on at least
+  /// top_edges.min_end_support of the stretch they share. Two parts in a row at one height show
+  /// the ground, their walls and shadows between them (default seed 155183: two boxes 17 mm
+  /// apart joined into one flagged top, both missed); the pieces of one plain face show its
+  /// sides across the gap, and no edge where its points stop.
   bool join_islands_seen_as_one_face = true;
   /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
   /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had

@@ -511,11 +511,11 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
   return report;
 }
 
-std::optional<double> JointSidesAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
-                                          const std::vector<Eigen::Vector2d>& piece_b,
-                                          double height_mm, const Eigen::Matrix<double, 3, 4>& P,
-                                          const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                          const TopFaceEdgeOptions& options) {
+std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
+                                              const std::vector<Eigen::Vector2d>& piece_b,
+                                              double height_mm, const Eigen::Matrix<double, 3, 4>& P,
+                                              const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                              const TopFaceEdgeOptions& options) {
   if (piece_a.empty() || piece_b.empty() || gradient_x.empty()) return std::nullopt;
   std::vector<Eigen::Vector2d> joint = piece_a;
   joint.insert(joint.end(), piece_b.begin(), piece_b.end());
@@ -530,40 +530,71 @@ std::optional<double> JointSidesAcrossGap(const std::vector<Eigen::Vector2d>& pi
     }
     return std::pair<double, double>(lo, hi);
   };
-  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far].
+  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far]
+  // (`first` the piece before it along that axis).
   int along = -1;
   double near = 0.0, far = 0.0;
+  const std::vector<Eigen::Vector2d>* first = nullptr;
+  const std::vector<Eigen::Vector2d>* second = nullptr;
   for (int axis = 0; axis < 2; ++axis) {
     const auto [a_lo, a_hi] = extent(piece_a, axis);
     const auto [b_lo, b_hi] = extent(piece_b, axis);
-    const double from = a_hi < b_lo ? a_hi : b_hi;
-    const double to = a_hi < b_lo ? b_lo : a_lo;
+    const bool a_first = a_hi < b_lo;
+    const double from = a_first ? a_hi : b_hi;
+    const double to = a_first ? b_lo : a_lo;
     if (to - from > far - near) {
       along = axis;
       near = from;
       far = to;
+      first = a_first ? &piece_a : &piece_b;
+      second = a_first ? &piece_b : &piece_a;
     }
   }
-  near += options.corner_margin_mm;
-  far -= options.corner_margin_mm;
-  if (along < 0 || far - near < 2.0 * options.step_mm) return std::nullopt;
+  const double margin = options.corner_margin_mm;
+  const double step = options.step_mm;
+  if (along < 0 || far - near - 2.0 * margin < 2.0 * step) return std::nullopt;
   const EdgeProbe probe(P, gradient_x, gradient_y, height_mm, options.min_edge_gradient);
   const int across_axis = 1 - along;
-  double best = 0.0;
+  const auto at = [&](double t_along, double t_across) {
+    return Eigen::Vector2d(f.centre + t_along * f.axis[along] + t_across * f.axis[across_axis]);
+  };
+  GapBetweenPieces gap;
+  // The sides across the gap, each at its best offset within kSearchMm of the rectangle's side
+  // (the pieces' points scatter about the face's outline).
+  constexpr double kSearchMm = 2.0;
+  const double end = f.half[along] - margin;
   for (double across : {-1.0, 1.0}) {
-    const Eigen::Vector2d base = f.centre + across * f.half[across_axis] * f.axis[across_axis];
     const Eigen::Vector2d outward = across * f.axis[across_axis];
-    // The side's polarity: its mean over the whole side, the pieces' stretches (often longer
-    // than the gap) included; a piece may be an edge strip too thin to show it alone.
-    const double end = f.half[along] - options.corner_margin_mm;
-    const double face = probe.MeanOutwardGradient(base - end * f.axis[along],
-                                                  base + end * f.axis[along], outward,
-                                                  options.step_mm);
-    if (face == 0.0) continue;
-    best = std::max(best, probe.PolarSupport(base + near * f.axis[along], base + far * f.axis[along],
-                                             outward, face > 0.0 ? 1.0 : -1.0, options.step_mm));
+    for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
+      const double line = across * (f.half[across_axis] + offset);
+      // The side's polarity: its mean over the whole side, the pieces' stretches (often
+      // longer than the gap) included; a piece may be an edge strip too thin to show it alone.
+      const double face = probe.MeanOutwardGradient(at(-end, line), at(end, line), outward, step);
+      if (face == 0.0) continue;
+      gap.sides_support = std::max(
+          gap.sides_support, probe.PolarSupport(at(near + margin, line), at(far - margin, line),
+                                                outward, face > 0.0 ? 1.0 : -1.0, step));
+    }
   }
-  return best;
+  // The facing ends, over the stretch across that both pieces span: each at its best offset
+  // within kSearchMm of its points' extent, both faces brighter than the gap (or both darker).
+  const auto [first_lo, first_hi] = extent(*first, across_axis);
+  const auto [second_lo, second_hi] = extent(*second, across_axis);
+  const double lo = std::max(first_lo, second_lo) + margin;
+  const double hi = std::min(first_hi, second_hi) - margin;
+  if (hi - lo >= 2.0 * margin) {
+    for (double polarity : {-1.0, 1.0}) {
+      double first_end = 0.0, second_end = 0.0;
+      for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
+        first_end = std::max(first_end, probe.PolarSupport(at(near + offset, lo), at(near + offset, hi),
+                                                           f.axis[along], polarity, step));
+        second_end = std::max(second_end, probe.PolarSupport(at(far + offset, lo), at(far + offset, hi),
+                                                             -f.axis[along], polarity, step));
+      }
+      gap.ends_support = std::max(gap.ends_support, std::min(first_end, second_end));
+    }
+  }
+  return gap;
 }
 
 }  // namespace hnnstereo::vision

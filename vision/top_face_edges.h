@@ -105,21 +105,33 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
                                         bool centroid_from_rectangle,
                                         const TopFaceEdgeOptions& options = {});
 
-/// Whether two pieces of top-face points at one height (table plane, mm) that lie apart are
-/// one face in the image: the sides of their joint minimum-area rectangle that run across the
-/// gap between them, sampled over that gap (less the corner margin at each end) in one image
-/// seen through `P`, keep the polarity they show on the whole (brighter or darker than the
-/// ground beside them). Returns the higher of the two sides' fractions of such samples
-/// (PolarSupport, options.min_edge_gradient); nullopt when the pieces do not lie apart along
-/// an axis of that rectangle by more than twice the corner margin. One plain face seen as its
-/// two strong ends keeps its sides across the gap (a shadow across it dims but does not hide
-/// them: ambient light); two parts in a row show the ground, their walls and shadows there
-/// (default seed 155183: boxes 47 x 32 and 61 x 42 mm, 50 and 48 mm tall, 17 mm apart, joined
-/// into one 126 x 43 mm top).
-std::optional<double> JointSidesAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
-                                          const std::vector<Eigen::Vector2d>& piece_b,
-                                          double height_mm, const Eigen::Matrix<double, 3, 4>& P,
-                                          const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                          const TopFaceEdgeOptions& options = {});
+/// What one image shows between two pieces of top-face points at one height that lie apart
+/// along an axis of their joint minimum-area rectangle (LookAcrossGap).
+struct GapBetweenPieces {
+  /// The joint rectangle's sides that run across the gap (sampled over the gap less the corner
+  /// margin at each end, each at its best offset within 2 mm): the higher of the two sides'
+  /// fractions of samples with the polarity that side shows on the whole (brighter or darker
+  /// than the ground beside it; PolarSupport, min_edge_gradient). One plain face seen as its
+  /// two strong ends keeps its sides across the gap; a shadow across it dims but does not hide
+  /// them (ambient light).
+  double sides_support = 0.0;
+  /// The pieces' ends facing each other across the gap (over the stretch both span, each at
+  /// its best offset within 2 mm of its points): the lower of the two ends' fractions of
+  /// samples that are edges with both faces brighter than the gap (or both darker). Two parts
+  /// in a row each end at an edge before the ground, their walls and shadows; the pieces of
+  /// one face that its points left apart show no edge where the points stop.
+  double ends_support = 0.0;
+};
+
+/// Looks, in one image seen through `P` (`gradient_x`, `gradient_y` its 3 x 3 Sobel gradients),
+/// at the gap between two pieces of top-face points (table plane, mm) at `height_mm`; nullopt
+/// when they do not lie apart along an axis of their joint rectangle by more than twice the
+/// corner margin. Default seed 155183: boxes 47 x 32 and 61 x 42 mm, 50 and 48 mm tall, 17 mm
+/// apart in a row, joined into one 126 x 43 mm top: sides across the gap 0, ends 1.
+std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
+                                              const std::vector<Eigen::Vector2d>& piece_b,
+                                              double height_mm, const Eigen::Matrix<double, 3, 4>& P,
+                                              const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                              const TopFaceEdgeOptions& options = {});
 
 }  // namespace hnnstereo::vision

@@ -294,33 +294,37 @@ void Paint(DrawnTop* d, double x0, double x1, double y0, double y1, double grey)
 
 TEST(TopFaceEdges, OneFaceSeenAsItsTwoEndsKeepsItsSidesAcrossTheGap) {
   // The 60 x 30 face's points only at its two ends (strips 4 mm deep): its sides run on, in the
-  // image, over the 52 mm between them - also under a neighbour's shadow across its middle.
+  // image, over the 52 mm between them - also under a neighbour's shadow across its middle -
+  // and where the points stop, the face goes on: no edge.
   DrawnTop d = Draw();
   const std::vector<Eigen::Vector2d> a = Outline(-30.0, -26.0, -15.0, 15.0);
   const std::vector<Eigen::Vector2d> b = Outline(26.0, 30.0, -15.0, 15.0);
-  std::optional<double> support = JointSidesAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
-  ASSERT_TRUE(support.has_value());
-  EXPECT_GE(*support, 0.9);
+  std::optional<GapBetweenPieces> gap = LookAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
+  ASSERT_TRUE(gap.has_value());
+  EXPECT_GE(gap->sides_support, 0.9);
+  EXPECT_LE(gap->ends_support, 0.2);
   Shade(&d, -10.0, 10.0, -25.0, 25.0, 0.35);
-  support = JointSidesAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
-  ASSERT_TRUE(support.has_value());
-  EXPECT_GE(*support, 0.6);
+  gap = LookAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
+  ASSERT_TRUE(gap.has_value());
+  EXPECT_GE(gap->sides_support, 0.6);
 }
 
 TEST(TopFaceEdges, TwoFacesInARowShowTheGroundAcrossTheGap) {
   // Two 25 x 30 faces at one height, 10 mm of ground between them: whole outlines each, as
-  // two boxes in a row are seen (default seed 155183). No side runs across the gap.
+  // two boxes in a row are seen (default seed 155183). No side runs across the gap, and each
+  // face ends at an edge, brighter than the gap.
   DrawnTop d = Draw();
   Paint(&d, -5.0, 5.0, -20.0, 20.0, 40.0);
   const std::vector<Eigen::Vector2d> a = Outline(-30.0, -5.0, -15.0, 15.0);
   const std::vector<Eigen::Vector2d> b = Outline(5.0, 30.0, -15.0, 15.0);
-  const std::optional<double> support =
-      JointSidesAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
-  ASSERT_TRUE(support.has_value());
-  EXPECT_LT(*support, 0.2);
+  const std::optional<GapBetweenPieces> gap =
+      LookAcrossGap(a, b, d.height, d.P, d.gradient_x, d.gradient_y);
+  ASSERT_TRUE(gap.has_value());
+  EXPECT_LT(gap->sides_support, 0.2);
+  EXPECT_GE(gap->ends_support, 0.9);
   // Pieces that overlap along both axes have no gap to look at.
-  EXPECT_FALSE(JointSidesAcrossGap(a, Outline(-10.0, 10.0, -5.0, 5.0), d.height, d.P,
-                                   d.gradient_x, d.gradient_y)
+  EXPECT_FALSE(LookAcrossGap(a, Outline(-10.0, 10.0, -5.0, 5.0), d.height, d.P, d.gradient_x,
+                             d.gradient_y)
                    .has_value());
 }
 
