@@ -442,25 +442,29 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   std::vector<ObjectPose> narrow_pieces;  // dropped by min_top_width_mm
   std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
-    // A small part is kept for now when it may be a whole top face (dropped below if flagged).
-    bool small = static_cast<int>(cluster.size()) < options.min_strong_points &&
-                 !(options.min_strong_points_whole_top > 0 &&
-                   static_cast<int>(cluster.size()) >= options.min_strong_points_whole_top);
+    // A small part is kept for now when it may be a whole top face (dropped below if flagged);
+    // the counts and the left-out pieces are of parts at least min_strong_points strong, as
+    // without that exception.
+    const bool below = static_cast<int>(cluster.size()) < options.min_strong_points;
+    bool small = below && !(options.min_strong_points_whole_top > 0 &&
+                            static_cast<int>(cluster.size()) >= options.min_strong_points_whole_top);
     if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
       ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
       if (pose.top_points < options.min_top_fraction * pose.points) {
         small = true;
-        ++report.without_top_face;
+        if (!below) ++report.without_top_face;
       } else if (pose.top_rectangle.width < options.min_top_width_mm) {
         small = true;
-        ++report.narrow_top_face;
-        narrow_pieces.push_back(std::move(pose));
+        if (!below) {
+          ++report.narrow_top_face;
+          narrow_pieces.push_back(std::move(pose));
+        }
       } else if (options.max_whole_top_length_mm > 0.0 &&
                  pose.top_rectangle.length > options.max_whole_top_length_mm &&
                  pose.top_rectangle.width < options.min_whole_top_width_mm) {
         // Longer than any part and narrower than any: a line across parts, not a top.
         small = true;
-        ++report.narrow_top_face;
+        if (!below) ++report.narrow_top_face;
       }
     }
     if (small) {
