@@ -6,8 +6,6 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <sstream>
 #include <stdexcept>
 
@@ -414,14 +412,6 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
                          double height) {
           const std::optional<GapBetweenPieces> gap = LookAcrossGap(
               a, b, height, calibration.P1, gradient_x, gradient_y, options.top_edges);
-          if (std::getenv("HNNSTEREO_DEBUG_JOIN") != nullptr) {
-            Eigen::Vector2d ca = Eigen::Vector2d::Zero(), cb = Eigen::Vector2d::Zero();
-            for (const auto& p : a) ca += p / static_cast<double>(a.size());
-            for (const auto& p : b) cb += p / static_cast<double>(b.size());
-            std::fprintf(stderr, "join (%.1f, %.1f) %zu + (%.1f, %.1f) %zu at %.1f: sides %.2f ends %.2f\n",
-                         ca.x(), ca.y(), a.size(), cb.x(), cb.y(), b.size(), height,
-                         gap ? gap->sides_support : -1.0, gap ? gap->ends_support : -1.0);
-          }
           return gap && gap->sides_support < options.top_edges.min_side_support &&
                  gap->ends_support >= options.top_edges.min_end_support;
         };
