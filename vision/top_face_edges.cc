@@ -530,12 +530,9 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
     }
     return std::pair<double, double>(lo, hi);
   };
-  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far]
-  // (`first` the piece before it along that axis).
+  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far].
   int along = -1;
   double near = 0.0, far = 0.0;
-  const std::vector<Eigen::Vector2d>* first = nullptr;
-  const std::vector<Eigen::Vector2d>* second = nullptr;
   for (int axis = 0; axis < 2; ++axis) {
     const auto [a_lo, a_hi] = extent(piece_a, axis);
     const auto [b_lo, b_hi] = extent(piece_b, axis);
@@ -546,8 +543,6 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
       along = axis;
       near = from;
       far = to;
-      first = a_first ? &piece_a : &piece_b;
-      second = a_first ? &piece_b : &piece_a;
     }
   }
   const double margin = options.corner_margin_mm;
@@ -576,23 +571,45 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
                                                 outward, face > 0.0 ? 1.0 : -1.0, step));
     }
   }
-  // The facing ends, over the stretch across that both pieces span: each at its best offset
-  // within kSearchMm of its points' extent, both faces brighter than the gap (or both darker).
-  const auto [first_lo, first_hi] = extent(*first, across_axis);
-  const auto [second_lo, second_hi] = extent(*second, across_axis);
-  const double lo = std::max(first_lo, second_lo) + margin;
-  const double hi = std::min(first_hi, second_hi) - margin;
-  if (hi - lo >= 2.0 * margin) {
-    for (double polarity : {-1.0, 1.0}) {
-      double first_end = 0.0, second_end = 0.0;
-      for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
-        first_end = std::max(first_end, probe.PolarSupport(at(near + offset, lo), at(near + offset, hi),
-                                                           f.axis[along], polarity, step));
-        second_end = std::max(second_end, probe.PolarSupport(at(far + offset, lo), at(far + offset, hi),
-                                                             -f.axis[along], polarity, step));
+  // The facing ends: the side of each piece's own minimum-area rectangle that faces the other
+  // piece (two boxes in a row need not share a yaw), each at its best offset within kSearchMm,
+  // both faces brighter than the gap (or both darker).
+  const auto facing_end = [&](const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
+                              double polarity) {
+    const Frame own = FrameOf(MinAreaRectangle(piece));
+    const Eigen::Vector2d to = towards - own.centre;
+    // The side whose outward normal points most towards the other piece.
+    int axis = 0;
+    double best_cosine = -2.0, sign = 1.0;
+    for (int k = 0; k < 2; ++k) {
+      for (double side_sign : {-1.0, 1.0}) {
+        const double cosine = side_sign * own.axis[k].dot(to.normalized());
+        if (cosine > best_cosine) {
+          best_cosine = cosine;
+          axis = k;
+          sign = side_sign;
+        }
       }
-      gap.ends_support = std::max(gap.ends_support, std::min(first_end, second_end));
     }
+    const int other = 1 - axis;
+    const double reach = own.half[other] - margin;
+    if (reach < margin) return 0.0;  // a thin piece's end is no edge
+    const Eigen::Vector2d outward = sign * own.axis[axis];
+    double support = 0.0;
+    for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
+      const Eigen::Vector2d mid = own.centre + (own.half[axis] + offset) * outward;
+      support = std::max(support, probe.PolarSupport(mid - reach * own.axis[other],
+                                                     mid + reach * own.axis[other], outward,
+                                                     polarity, step));
+    }
+    return support;
+  };
+  Eigen::Vector2d centre_a = Eigen::Vector2d::Zero(), centre_b = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : piece_a) centre_a += p / static_cast<double>(piece_a.size());
+  for (const Eigen::Vector2d& p : piece_b) centre_b += p / static_cast<double>(piece_b.size());
+  for (double polarity : {-1.0, 1.0}) {
+    gap.ends_support = std::max(gap.ends_support, std::min(facing_end(piece_a, centre_b, polarity),
+                                                           facing_end(piece_b, centre_a, polarity)));
   }
   return gap;
 }

@@ -115,11 +115,12 @@ struct GapBetweenPieces {
   /// two strong ends keeps its sides across the gap; a shadow across it dims but does not hide
   /// them (ambient light).
   double sides_support = 0.0;
-  /// The pieces' ends facing each other across the gap (over the stretch both span, each at
-  /// its best offset within 2 mm of its points): the lower of the two ends' fractions of
-  /// samples that are edges with both faces brighter than the gap (or both darker). Two parts
-  /// in a row each end at an edge before the ground, their walls and shadows; the pieces of
-  /// one face that its points left apart show no edge where the points stop.
+  /// The pieces' ends facing each other: the side of each piece's own minimum-area rectangle
+  /// that faces the other piece (less the corner margins, at its best offset within 2 mm):
+  /// the lower of the two ends' fractions of samples that are edges with both faces brighter
+  /// than the gap (or both darker). Two parts side by side, whatever their yaws, each end at
+  /// an edge before the ground, their walls and shadows; the pieces of one face that its
+  /// points left apart show no edge where the points stop.
   double ends_support = 0.0;
 };
 
