@@ -58,22 +58,38 @@ DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0, d
   return d;
 }
 
-// Multiplies the image by `gain` over the world rectangle x0..x1, y0..y1 seen at the top's
-// height (a shadow), then takes the gradients again.
-void Shade(DrawnTop* d, double x0, double x1, double y0, double y1, double gain) {
+// The mask of the world rectangle x0..x1, y0..y1 seen at the top's height.
+cv::Mat MaskOf(const DrawnTop& d, double x0, double x1, double y0, double y1) {
   std::vector<cv::Point> corners;
   for (const auto& [x, y] : std::vector<std::pair<double, double>>{{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}}) {
-    const Eigen::Vector3d p = d->P * Eigen::Vector4d(x, y, d->height, 1.0);
+    const Eigen::Vector3d p = d.P * Eigen::Vector4d(x, y, d.height, 1.0);
     corners.emplace_back(static_cast<int>(std::lround(p.x() / p.z())), static_cast<int>(std::lround(p.y() / p.z())));
   }
-  cv::Mat mask = cv::Mat::zeros(d->image.size(), CV_8U);
+  cv::Mat mask = cv::Mat::zeros(d.image.size(), CV_8U);
   cv::fillConvexPoly(mask, corners, cv::Scalar(255));
-  cv::Mat shaded;
-  d->image.convertTo(shaded, CV_8U, gain);
-  shaded.copyTo(d->image, mask);
+  return mask;
+}
+
+// Blurs the edited image a little and takes the gradients again.
+void Regradient(DrawnTop* d) {
   cv::GaussianBlur(d->image, d->image, cv::Size(3, 3), 0.6);
   cv::Sobel(d->image, d->gradient_x, CV_32F, 1, 0, 3);
   cv::Sobel(d->image, d->gradient_y, CV_32F, 0, 1, 3);
+}
+
+// Multiplies the image by `gain` over the world rectangle x0..x1, y0..y1 seen at the top's
+// height (a shadow).
+void Shade(DrawnTop* d, double x0, double x1, double y0, double y1, double gain) {
+  cv::Mat shaded;
+  d->image.convertTo(shaded, CV_8U, gain);
+  shaded.copyTo(d->image, MaskOf(*d, x0, x1, y0, y1));
+  Regradient(d);
+}
+
+// Paints that rectangle with `grey` (the ground between two faces).
+void Paint(DrawnTop* d, double x0, double x1, double y0, double y1, double grey) {
+  d->image.setTo(cv::Scalar(grey), MaskOf(*d, x0, x1, y0, y1));
+  Regradient(d);
 }
 
 // The pose of the face's points when its -x end was not matched: seen from x = -18 to +30.
@@ -277,19 +293,6 @@ std::vector<Eigen::Vector2d> Outline(double x0, double x1, double y0, double y1)
     points.emplace_back(x1, y);
   }
   return points;
-}
-
-// Paints the world rectangle x0..x1 by y0..y1, seen at the top's height, with `grey`.
-void Paint(DrawnTop* d, double x0, double x1, double y0, double y1, double grey) {
-  std::vector<cv::Point> corners;
-  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}}) {
-    const Eigen::Vector3d p = d->P * Eigen::Vector4d(x, y, d->height, 1.0);
-    corners.emplace_back(static_cast<int>(std::lround(p.x() / p.z())), static_cast<int>(std::lround(p.y() / p.z())));
-  }
-  cv::fillConvexPoly(d->image, corners, cv::Scalar(grey));
-  cv::GaussianBlur(d->image, d->image, cv::Size(3, 3), 0.6);
-  cv::Sobel(d->image, d->gradient_x, CV_32F, 1, 0, 3);
-  cv::Sobel(d->image, d->gradient_y, CV_32F, 0, 1, 3);
 }
 
 TEST(TopFaceEdges, OneFaceSeenAsItsTwoEndsKeepsItsSidesAcrossTheGap) {
