@@ -3,6 +3,7 @@
 #include "calib/epipolar.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -203,28 +204,40 @@ double SideStrength(const EdgeProbe& probe, const Frame& f, int k, const TopFace
 // `near` less the corner margin): a face brighter than the ground around it stays brighter past
 // a shadow's edge across it (ambient light), while the ground in the face's own shadow beyond
 // its end is darker than the ground beside it; 0 when a side shows no polarity along the face.
+// `wall_mm` (for the side at -half and at +half across): each side's line past the edge may lie
+// up to that far outward (the best line counts): in a shadow the face and the wall the camera
+// sees beside it can be equally dark, and the side's edge is then the wall's base (default
+// 259055, gap0 239086: tops whose far 11-15 mm lie in a taller neighbour's shadow).
 std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame& f, int k,
                                             double near, double far, double step,
-                                            std::optional<double> face_corner_margin = std::nullopt) {
+                                            std::optional<double> face_corner_margin = std::nullopt,
+                                            std::array<double, 2> wall_mm = {0.0, 0.0}) {
   if (far - near < 2.0 * step) return std::nullopt;
   const Side s = SideOf(k);
   const int other = 1 - s.axis;
   double lowest = 1.0;
   for (double across : {-1.0, 1.0}) {
-    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
-    const Eigen::Vector2d a = base + s.sign * near * f.axis[s.axis];
-    const Eigen::Vector2d b = base + s.sign * far * f.axis[s.axis];
-    if (!face_corner_margin) {
-      lowest = std::min(lowest, probe.Support(a, b, step));
-      continue;
-    }
-    const double margin = *face_corner_margin;
     const Eigen::Vector2d outward = across * f.axis[other];
-    const double face = probe.MeanOutwardGradient(
-        base - s.sign * (f.half[s.axis] - margin) * f.axis[s.axis],
-        base + s.sign * (near - 2.0 * margin) * f.axis[s.axis], outward, step);
-    if (face == 0.0) return 0.0;
-    lowest = std::min(lowest, probe.PolarSupport(a, b, outward, face > 0.0 ? 1.0 : -1.0, step));
+    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
+    double polarity = 0.0;
+    if (face_corner_margin) {
+      const double margin = *face_corner_margin;
+      const double face = probe.MeanOutwardGradient(
+          base - s.sign * (f.half[s.axis] - margin) * f.axis[s.axis],
+          base + s.sign * (near - 2.0 * margin) * f.axis[s.axis], outward, step);
+      if (face == 0.0) return 0.0;
+      polarity = face > 0.0 ? 1.0 : -1.0;
+    }
+    double best = 0.0;
+    const double reach = std::max(0.0, wall_mm[across > 0.0 ? 1 : 0]);
+    for (double offset = 0.0; offset <= reach + 1e-9; offset += step) {
+      const Eigen::Vector2d line = base + offset * outward;
+      const Eigen::Vector2d a = line + s.sign * near * f.axis[s.axis];
+      const Eigen::Vector2d b = line + s.sign * far * f.axis[s.axis];
+      best = std::max(best, face_corner_margin ? probe.PolarSupport(a, b, outward, polarity, step)
+                                               : probe.Support(a, b, step));
+    }
+    lowest = std::min(lowest, best);
   }
   return lowest;
 }
@@ -367,6 +380,15 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     // The base point under mid, seen through the plane of the top: mid + h / H (C - mid).
     return std::max(0.0, pose->height_mm / camera.z() * (camera.head<2>() - mid).dot(outward));
   };
+  // The walls seen beside side k's two neighbouring sides (at -half and +half across), plus
+  // 1 mm of blur, where those sides' lines may lie past a line across the face.
+  const auto neighbour_walls = [&](int k) {
+    const int other = 1 - SideOf(k).axis;
+    return std::array<double, 2>{wall_seen_mm(2 * other + 1) + 1.0, wall_seen_mm(2 * other) + 1.0};
+  };
+  // Sides at an image edge that is a line across the face whose end was not placed (those
+  // beyond an inner line count with the sides that have no edge under them).
+  int lines_unplaced = 0;
   for (int k = 0; k < 4; ++k) {
     const Side s = SideOf(k);
     // Is the side already at an image edge (within 1 mm)?
@@ -378,6 +400,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     report.end_support_before[k] = before;
     // Where the outward search starts (mm past the side).
     double search_from = 1.0;
+    bool line_at_side = false;  // the side lies at a line across the face
     const bool at_edge = before >= options.min_end_support;
     if (at_edge) {
       // A side at an image edge ends the face unless the face's two sides go on past that
@@ -389,12 +412,13 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       if (!options.look_past_lines_on_face) continue;
       const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
       if (NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                options.corner_margin_mm)
+                                options.corner_margin_mm, neighbour_walls(k))
                   .value_or(0.0) <
           options.min_side_support) {
         continue;
       }
       ++report.line_on_face;
+      line_at_side = true;
       // Past the base edge of a wall that would stand on this edge, by kPastWallMm.
       search_from = std::max(1.0 + options.corner_margin_mm, wall_seen_mm(k) + kPastWallMm);
     }
@@ -424,8 +448,9 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
       // a face that goes on past the edge goes on past the side as well.
       const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
-      const std::optional<double> sides_past_edge = NeighbourSidesSupport(
-          probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm), step);
+      const std::optional<double> sides_past_edge =
+          NeighbourSidesSupport(probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm),
+                                step, std::nullopt, neighbour_walls(k));
       if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
               options.max_cut_fraction &&
           sides_past_edge.value_or(0.0) < options.min_side_support) {
@@ -439,12 +464,13 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // cameras). Search out from the side.
       if (!options.look_past_lines_on_face ||
           NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                options.corner_margin_mm)
+                                options.corner_margin_mm, neighbour_walls(k))
                   .value_or(0.0) <
               options.min_side_support) {
         continue;
       }
       ++report.line_on_face;
+      line_at_side = true;
       search_from = std::max(search_from, best + wall_seen_mm(k) + kPastWallMm);
     }
     const double from = f.half[s.axis];
@@ -459,13 +485,34 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       // by half the extension) to the corner margin before the new one.
       if (SideSupport(probe, g, k, options) >= options.min_end_support &&
           NeighbourSidesSupport(probe, g, k, 2.0 * from - g.half[s.axis],
-                                g.half[s.axis] - options.corner_margin_mm, step)
+                                g.half[s.axis] - options.corner_margin_mm, step, std::nullopt,
+                                line_at_side ? neighbour_walls(k) : std::array<double, 2>{0.0, 0.0})
                   .value_or(1.0) >= options.min_side_support) {
+        // The edge found may itself be a line across the face: the points stopped short of a
+        // neighbour's shadow's edge, and the face's sides go on past that edge with the
+        // face's polarity (gap0 239086: a top whose far 15 mm lie in a taller neighbour's
+        // shadow, stretched only to the shadow's edge, 7.7 mm off). The search goes on past
+        // the base edge of a wall that would stand on it.
+        const double past = g.half[s.axis] + 1.0 + options.corner_margin_mm;
+        if (options.look_past_lines_on_face &&
+            NeighbourSidesSupport(probe, g, k, past, past + kSidesPastMm, step,
+                                  options.corner_margin_mm, neighbour_walls(k))
+                    .value_or(0.0) >= options.min_side_support) {
+          if (!line_at_side) ++report.line_on_face;
+          line_at_side = true;
+          e += wall_seen_mm(k) + kPastWallMm;
+          continue;
+        }
         found = e;
         break;
       }
     }
-    if (found <= 0.0) continue;
+    // A side at a line across the face whose end was not found: the face goes on past it,
+    // nobody knows how far.
+    if (found <= 0.0) {
+      if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
+      continue;
+    }
     const double best = strongest_line(k, found);
     const Frame g = Extended(f, k, best);
     // Lower points seen through the added strip (1.5 mm inside its sides): the table or a
@@ -477,6 +524,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
                                     points, weak, camera_centres) >
         options.max_contradicting_points) {
       ++report.refused_by_points;
+      if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
       continue;
     }
     report.extension_mm[k] = best;
@@ -487,6 +535,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       ++report.unplaced_sides;
     }
   }
+  report.unplaced_sides += lines_unplaced;
   if (report.moved_mm() == 0.0) return report;
   if (f.half[1] > f.half[0]) {
     // The moves made the short side the long one: the yaw (the long side's direction) would
@@ -498,6 +547,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       kept.end_support_before[k] = report.end_support_before[k];
       if (kept.end_support_before[k] < options.min_end_support) ++kept.unplaced_sides;
     }
+    kept.unplaced_sides += lines_unplaced;
     return kept;
   }
   Rectangle2D& r = pose->top_rectangle;
