@@ -956,6 +956,28 @@ TEST(PositionSensing, ABoxTopEndingInANeighboursShadowIsCompletedFromTheImage) {
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(sensed);
 }
 
+TEST(PositionSensing, ABoxTopEndingInAShadowAsDarkAsItsWallIsCompletedOrFlagged) {
+  // Fresh stress runs: `render --seed 259055`, a 65 x 40 mm box 58 mm tall, and `render --seed
+  // 239086 --min-gap 0`, a 59 x 41 mm box 56 mm tall, each with its far 11-15 mm in a taller
+  // neighbour's shadow. There the face and the wall the camera sees beside one of its sides are
+  // equally dark, so that side's only edge is the wall's base, 2.5 mm further out: the look past
+  // the shadow's edge failed, and the tops were sent 6.5 and 7.7 mm off. The sides' lines may
+  // now lie out to the wall's seen width; an edge found outward is looked past too; a side at
+  // such a line whose end is not found counts as unplaced (flagged).
+  PositionSensingOptions before = CpuOptions();
+  before.top_edges.look_past_lines_on_face = false;
+  {
+    SCOPED_TRACE(259055);
+    const SensedTwice sensed = SenseWithAndWithout(259055, before);
+    EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+    EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  }
+  {
+    SCOPED_TRACE(239086);
+    ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(239086, before));
+  }
+}
+
 TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
   // Stress run, `render --seed 179050 --min-gap 0`: a 75 x 50 mm box, 80 mm tall; the far 7 mm
   // of its top lie in a 115 mm neighbour's shadow, as dark as the ground around, so its sides

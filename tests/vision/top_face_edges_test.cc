@@ -21,10 +21,13 @@ struct DrawnTop {
 // Pinhole camera at (0, 0, 700) looking down -z (x right, y down in the image flipped): f 1000 px.
 // `wall_mm` > 0 also draws a mid-grey band that far beyond the face's +x end, as wide as the
 // face: a wall seen beside the top, its base edge in line with nothing but the face's sides.
-// `camera_x` moves the camera along x (a camera at x > length / 2 sees the +x wall).
-DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0, double camera_x = 0.0) {
+// `camera_x` moves the camera along x (a camera at x > length / 2 sees the +x wall), `camera_y`
+// along y.
+DrawnTop Draw(double length = 60.0, double width = 30.0, double wall_mm = 0.0, double camera_x = 0.0,
+              double camera_y = 0.0) {
   DrawnTop d;
   d.camera_centre.x() = camera_x;
+  d.camera_centre.y() = camera_y;
   Eigen::Matrix3d K;
   K << 1000, 0, 320, 0, 1000, 240, 0, 0, 1;
   Eigen::Matrix3d R;
@@ -143,6 +146,32 @@ TEST(TopFaceEdges, ASideAtAShadowsEdgeAcrossTheFaceMovesOutToTheFacesEnd) {
   ExtendTopToImageEdges(&kept, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0,
                         95.0, true, options);
   EXPECT_DOUBLE_EQ(kept.top_rectangle.length, 48.0);
+}
+
+TEST(TopFaceEdges, InAShadowASidesEdgeMayBeItsWallsBase) {
+  // A camera at y = 60 mm sees the face's +y wall, 40 / 700 x 45 = 2.6 mm wide in the top's
+  // plane: darker than the face in the light. A neighbour's shadow covers the face's -x end
+  // (12 mm) and the ground: there face and wall are equally dark (ambient light on both), and
+  // the +y side's only edge is the wall's base (default 259055, gap0 239086).
+  DrawnTop d = Draw(60.0, 30.0, 0.0, 0.0, 60.0);
+  Paint(&d, -18.0, 30.0, 15.0, 17.6, 120.0);
+  Shade(&d, -45.0, -18.0, -25.0, 25.0, 0.35);
+  Paint(&d, -30.0, -18.0, 15.0, 17.6, 70.0);
+  ObjectPose pose = CutPose(d.height);
+  const TopFaceEdgeReport report = Extend(d, &pose);
+  EXPECT_EQ(report.line_on_face, 1);
+  EXPECT_NEAR(pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(pose.centroid.x(), 0.0, 0.5);
+  EXPECT_EQ(report.unplaced_sides, 0);
+  // A face whose end the search does not reach (here: not within 5 mm) is not placed there.
+  TopFaceEdgeOptions short_reach;
+  short_reach.max_extension_mm = 5.0;
+  ObjectPose kept = CutPose(d.height);
+  const TopFaceEdgeReport unplaced = ExtendTopToImageEdges(
+      &kept, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0, 95.0, true, short_reach);
+  EXPECT_DOUBLE_EQ(kept.top_rectangle.length, 48.0);
+  EXPECT_EQ(unplaced.line_on_face, 1);
+  EXPECT_EQ(unplaced.unplaced_sides, 1);
 }
 
 TEST(TopFaceEdges, TheFacesOwnShadowBeyondItsEndIsNoPartOfIt) {
