@@ -60,7 +60,11 @@ struct TopFaceEdgeOptions {
   /// their samples over 4 mm) with the polarity they show along the face (brighter or darker
   /// than the ground beside it): the edge is a line across the face (a neighbour's shadow's
   /// edge, a mark), and the face's end is the next edge out that they reach, under the tests
-  /// above, at least 3 mm past the base edge of a wall the camera would see on that line.
+  /// above, at least 3 mm past the base edge of a wall the camera would see on that line. Past
+  /// such a line each side's line may lie out to the wall the camera sees beside that side
+  /// (plus 1 mm): in a shadow the face and that wall can be equally dark (default 259055). An
+  /// edge found on the way out is looked past in the same way (gap0 239086), and a side at
+  /// such a line whose end is not found counts in TopFaceEdgeReport::unplaced_sides.
   bool look_past_lines_on_face = true;
   std::string Check() const;
 };
