@@ -52,12 +52,13 @@ struct PositionSensingOptions {
   bool merge_top_face_islands = true;
   /// ... unless the left image shows the two pieces as two faces (vision/top_face_edges.h,
   /// LookAcrossGap): the joint top's sides that would run across the gap between them keep
-  /// their face's polarity on less than top_edges.min_side_support of it, and both pieces end
-  /// at an edge facing the other, both brighter than the gap (or both darker), on at least
-  /// top_edges.min_end_support of the stretch they share. Two parts in a row at one height show
-  /// the ground, their walls and shadows between them (default seed 155183: two boxes 17 mm
-  /// apart joined into one flagged top, both missed); the pieces of one plain face show its
-  /// sides across the gap, and no edge where its points stop.
+  /// their face's polarity on less than top_edges.min_side_support of it, and each piece ends
+  /// at an edge - the side of its own minimum-area rectangle that faces the other - both faces
+  /// brighter than the gap (or both darker), on at least top_edges.min_end_support of it. Two
+  /// parts side by side at one height show the ground, their walls and shadows between them
+  /// (default seeds 155183: two boxes 17 mm apart in a row, 17139: two at yaws 37 degrees
+  /// apart, each pair joined into one flagged top, both missed); the pieces of one plain face
+  /// show its sides across the gap, and no edge where its points stop.
   bool join_islands_seen_as_one_face = true;
   /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
   /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had
