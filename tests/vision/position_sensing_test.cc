@@ -432,11 +432,15 @@ SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
                                 PositionSensingOptions before,
                                 PositionSensingOptions sensing = CpuOptions()) {
   // The two flags that read a top's outline against the image and its neighbours
-  // (flag_unplaced_sides, shadow_strip_reach_mm) also catch many of the failures the older
-  // rules were built on: where a comparison does not test one of them, it is off on both
-  // sides, so that each rule is shown to matter on its own seed.
+  // (flag_unplaced_sides, shadow_strip_reach_mm), and the image's veto on island joins
+  // (join_islands_seen_as_one_face), also catch many of the failures the older rules were
+  // built on: where a comparison does not test one of them, it is off on both sides, so that
+  // each rule is shown to matter on its own seed.
   if (before.flag_unplaced_sides == sensing.flag_unplaced_sides) {
     before.flag_unplaced_sides = sensing.flag_unplaced_sides = false;
+  }
+  if (before.join_islands_seen_as_one_face == sensing.join_islands_seen_as_one_face) {
+    before.join_islands_seen_as_one_face = sensing.join_islands_seen_as_one_face = false;
   }
   if (before.shadow_strip_reach_mm == sensing.shadow_strip_reach_mm) {
     before.shadow_strip_reach_mm = sensing.shadow_strip_reach_mm = 0.0;
