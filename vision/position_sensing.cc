@@ -326,12 +326,17 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   // Linear triangulation from both P (thesis 6.2.9), then rejection.
   auto start = std::chrono::steady_clock::now();
   double residual_sum = 0.0;
+  // The left image's 3 x 3 Sobel gradients, taken once, when the first stage needs them (the
+  // edge-angle test, the island joins' image veto, the image fit).
   cv::Mat gradient_x, gradient_y;
+  const auto need_gradients = [&] {
+    if (gradient_x.empty()) {
+      cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
+      cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
+    }
+  };
   const bool test_edges = options.min_edge_epipolar_angle_deg > 0.0 && !left_grey.empty();
-  if (test_edges) {
-    cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
-    cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
-  }
+  if (test_edges) need_gradients();
   const double min_sine = std::sin(options.min_edge_epipolar_angle_deg * std::numbers::pi / 180.0);
   for (std::size_t m = 0; m < report.match.matches.size(); ++m) {
     const StereoMatch& stereo_match = report.match.matches[m];
@@ -404,10 +409,7 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
     if (options.merge_top_face_islands) {
       PiecesSeenApart seen_apart = nullptr;
       if (options.join_islands_seen_as_one_face && !left_grey.empty()) {
-        if (gradient_x.empty()) {
-          cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
-          cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
-        }
+        need_gradients();
         seen_apart = [&](const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b,
                          double height) {
           const std::optional<GapBetweenPieces> gap = LookAcrossGap(
@@ -520,10 +522,7 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       if (pose.merged) ++report.merged;
     }
     if (options.extend_tops_to_image_edges && !left_grey.empty()) {
-      if (gradient_x.empty()) {
-        cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
-        cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
-      }
+      need_gradients();
       const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
                                                            calib::CameraCentre(calibration.P2)};
       for (std::size_t a = 0; a < report.objects.size(); ++a) {
