@@ -11,6 +11,11 @@ CellSensingFlags::CellSensingFlags() {
   flags.options = vision::PickCellMatcherOptions();
   flags.zrange = "-5,200";
   flags.options.candidates.z_range_mm.reset();  // set from --zrange by Resolve
+  // The help shows the library's dynamics, which Resolve keeps (not hnn-default's).
+  flags.stop_rule =
+      flags.options.dynamics.stop_rule == hnn::DynamicsOptions::StopRule::kDecisions ? "decisions"
+                                                                                     : "energy";
+  flags.check_interval = flags.options.dynamics.energy_interval;
 }
 
 void CellSensingFlags::AddTo(CLI::App* cmd) {
@@ -92,6 +97,22 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
 void CellSensingFlags::Resolve() {
   flags.Resolve();
   flags.UseFeatureNetworkUnlessRectified(false);  // pick cells are calibrated, unrectified
+  // One source of truth: what the preset set and the user did not give is the library's
+  // PositionSensingOptions default, which the stress acceptance measures (hnn-default's
+  // decisions stop rule used to replace its energy rule here;
+  // tests/app/pick_library_defaults_test.cc).
+  const vision::MatcherOptions library = vision::PickCellMatcherOptions();
+  const auto given = [&](const char* name) { return flags.settings.given.count(name) > 0; };
+  hnn::DynamicsOptions& dynamics = flags.options.dynamics;
+  if (!given("stop")) dynamics.stop_rule = library.dynamics.stop_rule;
+  if (!given("check-interval")) {
+    dynamics.energy_interval = library.dynamics.energy_interval;
+    dynamics.stable_checks = library.dynamics.stable_checks;
+  }
+  if (!given("top-k")) flags.options.candidates.top_k = library.candidates.top_k;
+  if (!given("support-radius")) {
+    flags.options.energy.support_radius_px = library.energy.support_radius_px;
+  }
   sensing.matcher = flags.options;
   if (auto method = vision::ParseClusteringMethod(clustering)) {
     sensing.clustering = *method;

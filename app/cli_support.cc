@@ -204,12 +204,12 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   stop_option = cmd->add_option(
       "--stop", stop_rule,
       "What ends the parallel engines' run: energy (|dE| below the tolerance, the thesis's rule) "
-      "or decisions (every row's winner settled); the default shown is hnn-default's")
+      "or decisions (every row's winner settled); the default shown is what this command runs")
       ->capture_default_str();
   check_interval_option = cmd->add_option(
       "--check-interval", check_interval,
-      "Steps between convergence checks (energy and decisions); the default shown is "
-      "hnn-default's")
+      "Steps between convergence checks (energy and decisions); the default shown is what "
+      "this command runs")
       ->capture_default_str();
   cmd->add_option("--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines")
       ->capture_default_str();

@@ -115,6 +115,14 @@ double RectangleGap(const Rectangle2D& a, const Rectangle2D& b) {
   return gap;
 }
 
+// The table-plane rectangle that `pose`'s top face fills: its top rectangle, or its circle's
+// square when round.
+Rectangle2D TopFootprint(const ObjectPose& pose) {
+  if (!pose.round) return pose.top_rectangle;
+  const double diameter = 2.0 * pose.circle_radius;
+  return Rectangle2D{pose.circle_centre, diameter, diameter, 0.0};
+}
+
 // The outline of `pose`'s top face in the table plane, counter-clockwise: its rectangle's
 // corners, or 32 points of its circle when round.
 std::vector<Eigen::Vector2d> TopOutline(const ObjectPose& pose) {
@@ -521,6 +529,24 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       }
       if (pose.merged) ++report.merged;
     }
+    // A sliver reported at a top's height beside it (flagged above as narrower than any part)
+    // may be a piece of that top the island merge did not join, as a left-out line is.
+    for (std::size_t a = 0; options.flag_tops_beside_slivers && a < report.objects.size(); ++a) {
+      ObjectPose& pose = report.objects[a];
+      if (pose.merged) continue;
+      for (std::size_t b = 0; b < report.objects.size(); ++b) {
+        const ObjectPose& piece = report.objects[b];
+        if (b == a || piece.round || piece.top_rectangle.width >= options.min_whole_top_width_mm ||
+            std::abs(piece.height_mm - pose.height_mm) > pose_options.top_layer_mm ||
+            RectangleGap(piece.top_rectangle, TopFootprint(pose)) > options.left_out_piece_reach_mm) {
+          continue;
+        }
+        pose.piece_left_out = true;
+        pose.merged = true;
+        ++report.merged;
+        break;
+      }
+    }
     if (options.extend_tops_to_image_edges && !left_grey.empty()) {
       need_gradients();
       const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
@@ -530,10 +556,7 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
         std::vector<Rectangle2D> others;
         for (std::size_t b = 0; b < report.objects.size(); ++b) {
           if (b == a) continue;
-          const ObjectPose& other = report.objects[b];
-          const double diameter = 2.0 * other.circle_radius;
-          others.push_back(other.round ? Rectangle2D{other.circle_centre, diameter, diameter, 0.0}
-                                       : other.top_rectangle);
+          others.push_back(TopFootprint(report.objects[b]));
         }
         const double max_length = options.max_whole_top_length_mm > 0.0
                                       ? options.max_whole_top_length_mm

@@ -1030,6 +1030,22 @@ TEST(PositionSensing, APartBesideAPieceOfItsTopLeftOutIsFlagged) {
   EXPECT_GE(sensed.report.narrow_top_face, 1);
 }
 
+TEST(PositionSensing, APartBesideASliverOfItsTopIsFlagged) {
+  // Fresh stress run, `render --seed 289060`: a plain 67 x 51 mm top, 146 mm tall, fell apart
+  // into a 60 x 16 mm strip along one long side (reported, flagged as a sliver) and a 67 x 37
+  // mm rest whose hull fitted a partly seen disc; as a round top it passed every fill and
+  // outline flag and was sent 13.3 mm off. A sliver at a part's height within 30 mm of it
+  // flags the part (PositionSensingOptions::flag_tops_beside_slivers).
+  PositionSensingOptions before = CpuOptions();
+  before.flag_tops_beside_slivers = false;
+  const SensedTwice sensed = SenseWithAndWithout(289060, before);
+  EXPECT_EQ(FarUnflaggedPoses(sensed.report, sensed.scene), 0);
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1) << "the failure the rule exists for";
+  bool flagged = false;
+  for (const ObjectPose& pose : sensed.report.objects) flagged = flagged || pose.piece_left_out;
+  EXPECT_TRUE(flagged);
+}
+
 TEST(PositionSensing, ABoxTopCutStraightByATallerNeighbourIsFlagged) {
   // Stress runs, `render --seed 39001 --min-gap 0` and `--seed 119031 --min-gap 0`: a 67 x 47
   // mm box, 87 mm tall, touching a 114 mm one, seen as 58 x 48 (fill 0.96, 4.6 mm off); a 68 x
