@@ -242,6 +242,28 @@ std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame&
   return lowest;
 }
 
+// The polarity the face's outline shows across side k's two neighbouring sides, along the face
+// (from the corner margin at either end): +1 when the image is brighter outside the face on
+// both, -1 when darker on both, 0 when they disagree or show none.
+double NeighbourSidesPolarity(const EdgeProbe& probe, const Frame& f, int k, double margin,
+                              double step) {
+  const Side s = SideOf(k);
+  const int other = 1 - s.axis;
+  if (f.half[s.axis] <= 2.0 * margin) return 0.0;
+  double polarity = 0.0;
+  for (double across : {-1.0, 1.0}) {
+    const Eigen::Vector2d outward = across * f.axis[other];
+    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
+    const double mean = probe.MeanOutwardGradient(base - (f.half[s.axis] - margin) * f.axis[s.axis],
+                                                  base + (f.half[s.axis] - margin) * f.axis[s.axis],
+                                                  outward, step);
+    const double sign = mean > 0.0 ? 1.0 : (mean < 0.0 ? -1.0 : 0.0);
+    if (sign == 0.0 || (polarity != 0.0 && sign != polarity)) return 0.0;
+    polarity = sign;
+  }
+  return polarity;
+}
+
 bool Overlaps(const Frame& f, const Rectangle2D& other, double margin) {
   const cv::RotatedRect a(cv::Point2f(static_cast<float>(f.centre.x()), static_cast<float>(f.centre.y())),
                           cv::Size2f(static_cast<float>(2.0 * f.half[0] + 2.0 * margin),
@@ -398,6 +420,37 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
       before = std::max(before, SideSupport(probe, Extended(f, k, e), k, options));
     }
     report.end_support_before[k] = before;
+    // An edge under the side with the polarity opposite to the face's outline along its two
+    // neighbouring sides is no end of this face: a shadow's outer edge on the ground, matched
+    // at the top's height and joined to it (gap0 249002: a line of 49 points 13 mm beyond a
+    // 45 mm wide top, along its shadow's far edge - ground brighter than the shadow, where the
+    // top is brighter than everything around it). The side then lies beyond the face's edge.
+    // The face's edge inside is then sought with the face's polarity (the reversed edge's
+    // blur runs on a few pixels inward).
+    double face_polarity = 0.0;
+    const auto side_support = [&](const Frame& g) {
+      if (face_polarity == 0.0) return SideSupport(probe, g, k, options);
+      Eigen::Vector2d a, b;
+      return SideSegment(g, k, options, &a, &b)
+                 ? probe.PolarSupport(a, b, s.sign * g.axis[s.axis], face_polarity, step)
+                 : 0.0;
+    };
+    if (options.end_edge_polarity && before >= options.min_end_support) {
+      if (const double polarity = NeighbourSidesPolarity(probe, f, k, options.corner_margin_mm, step);
+          polarity != 0.0) {
+        face_polarity = polarity;
+        double polar = 0.0;
+        for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
+          if (f.half[s.axis] + 0.5 * e > 0.0) polar = std::max(polar, side_support(Extended(f, k, e)));
+        }
+        if (polar < options.min_end_support) {
+          ++report.end_edge_reversed;
+          before = polar;
+        } else {
+          face_polarity = 0.0;
+        }
+      }
+    }
     // Where the outward search starts (mm past the side).
     double search_from = 1.0;
     bool line_at_side = false;  // the side lies at a line across the face
@@ -431,7 +484,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     double inside = 0.0;
     for (double e = -1.0 - step;
          !at_edge && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
-      if (SideSupport(probe, Extended(f, k, e), k, options) >= options.min_end_support) {
+      if (side_support(Extended(f, k, e)) >= options.min_end_support) {
         inside = e;
         break;
       }
@@ -665,3 +718,4 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
 }
 
 }  // namespace hnnstereo::vision
+

@@ -66,6 +66,12 @@ struct TopFaceEdgeOptions {
   /// edge found on the way out is looked past in the same way (gap0 239086), and a side at
   /// such a line whose end is not found counts in TopFaceEdgeReport::unplaced_sides.
   bool look_past_lines_on_face = true;
+  /// A side counts as at an image edge only when that edge has the polarity the face's outline
+  /// shows along its two neighbouring sides (where they agree): the face brighter than what
+  /// lies around it, or darker. An edge of the opposite polarity under a side is another
+  /// outline (a shadow's far edge on the ground, matched at the top's height: gap0 249002, a
+  /// 45 mm wide top seen 58 mm wide, 6.6 mm off), and the side lies beyond the face's edge.
+  bool end_edge_polarity = true;
   std::string Check() const;
 };
 
@@ -81,6 +87,7 @@ struct TopFaceEdgeReport {
   /// the image confirms where the face ends there.
   int unplaced_sides = 0;
   int line_on_face = 0;  ///< sides at an image edge the face's sides go on past
+  int end_edge_reversed = 0;  ///< sides at an edge of the opposite polarity (no face's end)
   bool swapped_sides_refused = false;  ///< no move: they would make the short side the long one
   /// Outward moves summed (inward ones count negative).
   double total_mm() const { return extension_mm[0] + extension_mm[1] + extension_mm[2] + extension_mm[3]; }

@@ -30,6 +30,8 @@
 //   HNNSTEREO_STRESS_UNPLACED=0      without the unplaced-side flag (flag_unplaced_sides)
 //   HNNSTEREO_STRESS_JOIN_IMAGE=0    island joins without the image's veto
 //                                    (join_islands_seen_as_one_face)
+//   HNNSTEREO_STRESS_END_POLARITY=0  image fit without the end edge's polarity test
+//                                    (top_edges.end_edge_polarity)
 //   HNNSTEREO_STRESS_SLIVERS=0       without the flag for tops beside a reported sliver
 //                                    (flag_tops_beside_slivers)
 //   HNNSTEREO_STRESS_WHOLE_TOP_MIN=0 drop every part under min_strong_points, flagged or not
@@ -209,6 +211,7 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
   sensing.join_islands_seen_as_one_face = Env("HNNSTEREO_STRESS_JOIN_IMAGE", "1") != "0";
   sensing.flag_tops_beside_slivers = Env("HNNSTEREO_STRESS_SLIVERS", "1") != "0";
+  sensing.top_edges.end_edge_polarity = Env("HNNSTEREO_STRESS_END_POLARITY", "1") != "0";
   sensing.pose.face_end_line_mm =
       std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
   sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";

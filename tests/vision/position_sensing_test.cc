@@ -982,6 +982,17 @@ TEST(PositionSensing, ABoxTopEndingInAShadowAsDarkAsItsWallIsCompletedOrFlagged)
   }
 }
 
+TEST(PositionSensing, ABoxTopStretchedToItsShadowsFarEdgeIsCutBack) {
+  // Fresh stress run, `render --seed 249002 --min-gap 0`: a lone 67 x 45 mm box, 36 mm tall;
+  // 49 points matched along the far edge of its shadow on the table, at the top's height 13
+  // mm beyond its side, were joined to its top, seen 58 mm wide and sent 6.6 mm off. That edge
+  // is brighter outward, the face darker outward along its sides: it is no end of the face
+  // (TopFaceEdgeOptions::end_edge_polarity), and the side moves in to the face's edge.
+  PositionSensingOptions before = CpuOptions();
+  before.top_edges.end_edge_polarity = false;
+  ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(249002, before));
+}
+
 TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
   // Stress run, `render --seed 179050 --min-gap 0`: a 75 x 50 mm box, 80 mm tall; the far 7 mm
   // of its top lie in a 115 mm neighbour's shadow, as dark as the ground around, so its sides

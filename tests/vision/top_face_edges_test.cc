@@ -277,6 +277,45 @@ TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedOut) {
   EXPECT_GT(outward_only.pose.top_rectangle.length, 68.0) << "the failure the inward search exists for";
 }
 
+TEST(TopFaceEdges, AShadowsFarEdgeIsNoEndOfTheFace) {
+  // The face's shadow on the table beyond its +x end, 12 mm long and wider than the face,
+  // darker than the table; a line of points matched along the shadow's far edge at the top's
+  // height stretched the top to it (gap0 249002). That edge is brighter outward, where the face
+  // is darker outward along its sides: it is no end of the face, which moves in to its edge.
+  DrawnTop d = Draw();
+  Paint(&d, 30.0, 42.0, -25.0, 25.0, 10.0);
+  StretchedPose s;
+  s.pose = CutPose(d.height);
+  s.pose.top_rectangle.centre.x() = 6.0;
+  s.pose.top_rectangle.length = 72.0;
+  s.pose.centroid.x() = 6.0;
+  for (double x = -30.0; x <= 30.0; x += 2.0) {
+    s.points.emplace_back(x, -15.0, d.height);
+    s.points.emplace_back(x, 15.0, d.height);
+  }
+  for (double y = -15.0; y <= 15.0; y += 3.0) s.points.emplace_back(42.0, y, d.height);
+  for (int i = 0; i < static_cast<int>(s.points.size()); ++i) s.pose.point_indices.push_back(i);
+  StretchedPose without = s;
+  const TopFaceEdgeReport report = Extend(d, &s.pose, {}, s.points);
+  EXPECT_EQ(report.end_edge_reversed, 1);
+  EXPECT_NEAR(report.extension_mm[0], -12.0, 1.0);
+  EXPECT_NEAR(s.pose.top_rectangle.length, 60.0, 1.0);
+  EXPECT_NEAR(s.pose.centroid.x(), 0.0, 0.5);
+  TopFaceEdgeOptions options;
+  options.end_edge_polarity = false;
+  ExtendTopToImageEdges(&without.pose, d.P, d.gradient_x, d.gradient_y, {}, without.points,
+                        std::vector<bool>(without.points.size(), false), {d.camera_centre}, 5.0,
+                        95.0, true, options);
+  EXPECT_DOUBLE_EQ(without.pose.top_rectangle.length, 72.0) << "the failure the test exists for";
+  // The face's own end is an edge of the face's polarity: a whole top keeps its four sides.
+  ObjectPose whole = CutPose(d.height);
+  whole.top_rectangle.centre.x() = 0.0;
+  whole.top_rectangle.length = 60.0;
+  const TopFaceEdgeReport kept = Extend(d, &whole);
+  EXPECT_EQ(kept.end_edge_reversed, 0);
+  EXPECT_EQ(kept.moved_mm(), 0.0);
+}
+
 TEST(TopFaceEdges, TheTableSeenThroughTheStripRefusesIt) {
   // Table points (z = 0) seen through the strip the extension would add: the face is not there.
   const DrawnTop d = Draw();
