@@ -411,177 +411,193 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
   // Sides at an image edge that is a line across the face whose end was not placed (those
   // beyond an inner line count with the sides that have no edge under them).
   int lines_unplaced = 0;
-  for (int k = 0; k < 4; ++k) {
-    const Side s = SideOf(k);
-    // Is the side already at an image edge (within 1 mm)?
-    double before = 0.0;
-    for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
-      if (f.half[s.axis] + 0.5 * e <= 0.0) continue;
-      before = std::max(before, SideSupport(probe, Extended(f, k, e), k, options));
+  // Two passes when the first moves a side: a side's test reads its neighbouring sides' lines,
+  // which may move after it (gap0 299057: a 30 mm wide top seen 35.6 mm wide; its end at a
+  // neighbour's shadow's edge, tested before the sides moved in, sampled the face's sides
+  // 2-5 mm off their edges and never looked past it; 9.6 mm off).
+  TopFaceEdgeReport first;  // the first pass's findings, when there is a second
+  for (int pass = 0; pass < (options.second_pass ? 2 : 1); ++pass) {
+    if (pass == 1) {
+      if (report.moved_mm() == 0.0) break;
+      // The moves add up; the second pass's findings are counted afresh (merged below).
+      first = report;
+      report = TopFaceEdgeReport{};
+      for (int k = 0; k < 4; ++k) report.extension_mm[k] = first.extension_mm[k];
+      lines_unplaced = 0;
     }
-    report.end_support_before[k] = before;
-    // An edge under the side with the polarity opposite to the face's outline along its two
-    // neighbouring sides is no end of this face: a shadow's outer edge on the ground, matched
-    // at the top's height and joined to it (gap0 249002: a line of 49 points 13 mm beyond a
-    // 45 mm wide top, along its shadow's far edge - ground brighter than the shadow, where the
-    // top is brighter than everything around it). The side then lies beyond the face's edge.
-    // The face's edge inside is then sought with the face's polarity (the reversed edge's
-    // blur runs on a few pixels inward).
-    double face_polarity = 0.0;
-    const auto side_support = [&](const Frame& g) {
-      if (face_polarity == 0.0) return SideSupport(probe, g, k, options);
-      Eigen::Vector2d a, b;
-      return SideSegment(g, k, options, &a, &b)
-                 ? probe.PolarSupport(a, b, s.sign * g.axis[s.axis], face_polarity, step)
-                 : 0.0;
-    };
-    if (options.end_edge_polarity && before >= options.min_end_support) {
-      if (const double polarity = NeighbourSidesPolarity(probe, f, k, options.corner_margin_mm, step);
-          polarity != 0.0) {
-        face_polarity = polarity;
-        double polar = 0.0;
-        for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
-          if (f.half[s.axis] + 0.5 * e > 0.0) polar = std::max(polar, side_support(Extended(f, k, e)));
+    for (int k = 0; k < 4; ++k) {
+      const Side s = SideOf(k);
+      // Is the side already at an image edge (within 1 mm)?
+      double before = 0.0;
+      for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
+        if (f.half[s.axis] + 0.5 * e <= 0.0) continue;
+        before = std::max(before, SideSupport(probe, Extended(f, k, e), k, options));
+      }
+      report.end_support_before[k] = before;
+      // An edge under the side with the polarity opposite to the face's outline along its two
+      // neighbouring sides is no end of this face: a shadow's outer edge on the ground, matched
+      // at the top's height and joined to it (gap0 249002: a line of 49 points 13 mm beyond a
+      // 45 mm wide top, along its shadow's far edge - ground brighter than the shadow, where the
+      // top is brighter than everything around it). The side then lies beyond the face's edge.
+      // The face's edge inside is then sought with the face's polarity (the reversed edge's
+      // blur runs on a few pixels inward).
+      double face_polarity = 0.0;
+      const auto side_support = [&](const Frame& g) {
+        if (face_polarity == 0.0) return SideSupport(probe, g, k, options);
+        Eigen::Vector2d a, b;
+        return SideSegment(g, k, options, &a, &b)
+                   ? probe.PolarSupport(a, b, s.sign * g.axis[s.axis], face_polarity, step)
+                   : 0.0;
+      };
+      if (options.end_edge_polarity && before >= options.min_end_support) {
+        if (const double polarity =
+                NeighbourSidesPolarity(probe, f, k, options.corner_margin_mm, step);
+            polarity != 0.0) {
+          face_polarity = polarity;
+          double polar = 0.0;
+          for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
+            if (f.half[s.axis] + 0.5 * e > 0.0)
+              polar = std::max(polar, side_support(Extended(f, k, e)));
+          }
+          if (polar < options.min_end_support) {
+            ++report.end_edge_reversed;
+            before = polar;
+          } else {
+            face_polarity = 0.0;
+          }
         }
-        if (polar < options.min_end_support) {
-          ++report.end_edge_reversed;
-          before = polar;
-        } else {
-          face_polarity = 0.0;
-        }
       }
-    }
-    // Where the outward search starts (mm past the side).
-    double search_from = 1.0;
-    bool line_at_side = false;  // the side lies at a line across the face
-    const bool at_edge = before >= options.min_end_support;
-    if (at_edge) {
-      // A side at an image edge ends the face unless the face's two sides go on past that
-      // edge in the image: then the edge is a line across the face - a taller neighbour's
-      // shadow's edge, a mark - and the face's end lies further out (`--min-gap 0`, seed
-      // 69049: the far third of a 64 x 49 mm top in a neighbour's shadow, its sides plain
-      // against the darker table, seen 51 mm long, 6.3 mm off). Sampled from the corner
-      // margin past the edge over kSidesPastMm.
-      if (!options.look_past_lines_on_face) continue;
-      const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
-      if (NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                options.corner_margin_mm, neighbour_walls(k))
-                  .value_or(0.0) <
-          options.min_side_support) {
-        continue;
-      }
-      ++report.line_on_face;
-      line_at_side = true;
-      // Past the base edge of a wall that would stand on this edge, by kPastWallMm.
-      search_from = std::max(1.0 + options.corner_margin_mm, wall_seen_mm(k) + kPastWallMm);
-    }
-    // A side that lies beyond the face's edge (points at the top height past it: mismatches,
-    // a neighbour's points joined to the part) has no edge under it either, but the face's
-    // edge lies inside it: moving it out would stretch the top further (default seeds 65019,
-    // 65086: tops already 3.7 and 4.2 mm too wide found the walls' base edges beyond). It moves
-    // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
-    // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
-    double inside = 0.0;
-    for (double e = -1.0 - step;
-         !at_edge && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
-      if (side_support(Extended(f, k, e)) >= options.min_end_support) {
-        inside = e;
-        break;
-      }
-    }
-    if (inside < 0.0) {
-      ++report.edge_inside;
-      const double best = strongest_line(k, inside);
-      const Frame g = Extended(f, k, best);
-      // The face's sides going on past that edge in the image make it a line on the face (a
-      // neighbour's shadow, a mark), not the face's end (default 95059: the arc of a
-      // neighbour's shadow across a box's end, where the points stopped, pulled the top 4 mm
-      // further short).
-      // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
-      // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
-      // a face that goes on past the edge goes on past the side as well.
-      const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
-      const std::optional<double> sides_past_edge =
-          NeighbourSidesSupport(probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm),
-                                step, std::nullopt, neighbour_walls(k));
-      if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
-              options.max_cut_fraction &&
-          sides_past_edge.value_or(0.0) < options.min_side_support) {
-        report.extension_mm[k] = best;
-        f = g;
-        continue;
-      }
-      // A line across the face just inside the side, the face's sides going on past it with
-      // the face's polarity: the face's end may lie further out (the points stopped near a
-      // shadow's edge, as above, a little past it; gap0 69049 seen through the scene's own
-      // cameras). Search out from the side.
-      if (!options.look_past_lines_on_face ||
-          NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                options.corner_margin_mm, neighbour_walls(k))
-                  .value_or(0.0) <
-              options.min_side_support) {
-        continue;
-      }
-      ++report.line_on_face;
-      line_at_side = true;
-      search_from = std::max(search_from, best + wall_seen_mm(k) + kPastWallMm);
-    }
-    const double from = f.half[s.axis];
-    double found = 0.0;
-    for (double e = search_from; e <= options.max_extension_mm + 1e-9 && admissible(k, e);
-         e += step) {
-      const Frame g = Extended(f, k, e);
-      bool blocked = false;
-      for (const Rectangle2D& other : others) blocked = blocked || Overlaps(g, other, 1.0);
-      if (blocked) break;
-      // The neighbouring sides from the old side (2 from - g.half from g's centre, which moved
-      // by half the extension) to the corner margin before the new one.
-      if (SideSupport(probe, g, k, options) >= options.min_end_support &&
-          NeighbourSidesSupport(probe, g, k, 2.0 * from - g.half[s.axis],
-                                g.half[s.axis] - options.corner_margin_mm, step, std::nullopt,
-                                line_at_side ? neighbour_walls(k) : std::array<double, 2>{0.0, 0.0})
-                  .value_or(1.0) >= options.min_side_support) {
-        // The edge found may itself be a line across the face: the points stopped short of a
-        // neighbour's shadow's edge, and the face's sides go on past that edge with the
-        // face's polarity (gap0 239086: a top whose far 15 mm lie in a taller neighbour's
-        // shadow, stretched only to the shadow's edge, 7.7 mm off). The search goes on past
-        // the base edge of a wall that would stand on it.
-        const double past = g.half[s.axis] + 1.0 + options.corner_margin_mm;
-        if (options.look_past_lines_on_face &&
-            NeighbourSidesSupport(probe, g, k, past, past + kSidesPastMm, step,
+      // Where the outward search starts (mm past the side).
+      double search_from = 1.0;
+      bool line_at_side = false;  // the side lies at a line across the face
+      const bool at_edge = before >= options.min_end_support;
+      if (at_edge) {
+        // A side at an image edge ends the face unless the face's two sides go on past that
+        // edge in the image: then the edge is a line across the face - a taller neighbour's
+        // shadow's edge, a mark - and the face's end lies further out (`--min-gap 0`, seed
+        // 69049: the far third of a 64 x 49 mm top in a neighbour's shadow, its sides plain
+        // against the darker table, seen 51 mm long, 6.3 mm off). Sampled from the corner
+        // margin past the edge over kSidesPastMm.
+        if (!options.look_past_lines_on_face) continue;
+        const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
+        if (NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
                                   options.corner_margin_mm, neighbour_walls(k))
-                    .value_or(0.0) >= options.min_side_support) {
-          if (!line_at_side) ++report.line_on_face;
-          line_at_side = true;
-          e += wall_seen_mm(k) + kPastWallMm;
+                .value_or(0.0) < options.min_side_support) {
           continue;
         }
-        found = e;
-        break;
+        ++report.line_on_face;
+        line_at_side = true;
+        // Past the base edge of a wall that would stand on this edge, by kPastWallMm.
+        search_from = std::max(1.0 + options.corner_margin_mm, wall_seen_mm(k) + kPastWallMm);
       }
+      // A side that lies beyond the face's edge (points at the top height past it: mismatches,
+      // a neighbour's points joined to the part) has no edge under it either, but the face's
+      // edge lies inside it: moving it out would stretch the top further (default seeds 65019,
+      // 65086: tops already 3.7 and 4.2 mm too wide found the walls' base edges beyond). It moves
+      // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
+      // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
+      double inside = 0.0;
+      for (double e = -1.0 - step;
+           !at_edge && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
+        if (side_support(Extended(f, k, e)) >= options.min_end_support) {
+          inside = e;
+          break;
+        }
+      }
+      if (inside < 0.0) {
+        ++report.edge_inside;
+        const double best = strongest_line(k, inside);
+        const Frame g = Extended(f, k, best);
+        // The face's sides going on past that edge in the image make it a line on the face (a
+        // neighbour's shadow, a mark), not the face's end (default 95059: the arc of a
+        // neighbour's shadow across a box's end, where the points stopped, pulled the top 4 mm
+        // further short).
+        // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
+        // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
+        // a face that goes on past the edge goes on past the side as well.
+        const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
+        const std::optional<double> sides_past_edge = NeighbourSidesSupport(
+            probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm), step,
+            std::nullopt, neighbour_walls(k));
+        if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
+                options.max_cut_fraction &&
+            sides_past_edge.value_or(0.0) < options.min_side_support) {
+          report.extension_mm[k] += best;
+          f = g;
+          continue;
+        }
+        // A line across the face just inside the side, the face's sides going on past it with
+        // the face's polarity: the face's end may lie further out (the points stopped near a
+        // shadow's edge, as above, a little past it; gap0 69049 seen through the scene's own
+        // cameras). Search out from the side.
+        if (!options.look_past_lines_on_face ||
+            NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
+                                  options.corner_margin_mm, neighbour_walls(k))
+                    .value_or(0.0) < options.min_side_support) {
+          continue;
+        }
+        ++report.line_on_face;
+        line_at_side = true;
+        search_from = std::max(search_from, best + wall_seen_mm(k) + kPastWallMm);
+      }
+      const double from = f.half[s.axis];
+      double found = 0.0;
+      for (double e = search_from; e <= options.max_extension_mm + 1e-9 && admissible(k, e);
+           e += step) {
+        const Frame g = Extended(f, k, e);
+        bool blocked = false;
+        for (const Rectangle2D& other : others) blocked = blocked || Overlaps(g, other, 1.0);
+        if (blocked) break;
+        // The neighbouring sides from the old side (2 from - g.half from g's centre, which moved
+        // by half the extension) to the corner margin before the new one.
+        if (SideSupport(probe, g, k, options) >= options.min_end_support &&
+            NeighbourSidesSupport(
+                probe, g, k, 2.0 * from - g.half[s.axis], g.half[s.axis] - options.corner_margin_mm,
+                step, std::nullopt,
+                line_at_side ? neighbour_walls(k) : std::array<double, 2>{0.0, 0.0})
+                    .value_or(1.0) >= options.min_side_support) {
+          // The edge found may itself be a line across the face: the points stopped short of a
+          // neighbour's shadow's edge, and the face's sides go on past that edge with the
+          // face's polarity (gap0 239086: a top whose far 15 mm lie in a taller neighbour's
+          // shadow, stretched only to the shadow's edge, 7.7 mm off). The search goes on past
+          // the base edge of a wall that would stand on it.
+          const double past = g.half[s.axis] + 1.0 + options.corner_margin_mm;
+          if (options.look_past_lines_on_face &&
+              NeighbourSidesSupport(probe, g, k, past, past + kSidesPastMm, step,
+                                    options.corner_margin_mm, neighbour_walls(k))
+                      .value_or(0.0) >= options.min_side_support) {
+            if (!line_at_side) ++report.line_on_face;
+            line_at_side = true;
+            e += wall_seen_mm(k) + kPastWallMm;
+            continue;
+          }
+          found = e;
+          break;
+        }
+      }
+      // A side at a line across the face whose end was not found: the face goes on past it,
+      // nobody knows how far.
+      if (found <= 0.0) {
+        if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
+        continue;
+      }
+      const double best = strongest_line(k, found);
+      const Frame g = Extended(f, k, best);
+      // Lower points seen through the added strip (1.5 mm inside its sides): the table or a
+      // lower part where the face would hide them.
+      constexpr double kInsideMm = 1.5;
+      const double low = pose->height_mm - 2.0 * top_layer_mm;
+      if (LowerPointsSeenThroughStrip(g, k, 2.0 * from - g.half[s.axis] + kInsideMm,
+                                      g.half[s.axis] - kInsideMm, kInsideMm, pose->height_mm, low,
+                                      points, weak,
+                                      camera_centres) > options.max_contradicting_points) {
+        ++report.refused_by_points;
+        if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
+        continue;
+      }
+      report.extension_mm[k] += best;
+      f = g;
     }
-    // A side at a line across the face whose end was not found: the face goes on past it,
-    // nobody knows how far.
-    if (found <= 0.0) {
-      if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
-      continue;
-    }
-    const double best = strongest_line(k, found);
-    const Frame g = Extended(f, k, best);
-    // Lower points seen through the added strip (1.5 mm inside its sides): the table or a
-    // lower part where the face would hide them.
-    constexpr double kInsideMm = 1.5;
-    const double low = pose->height_mm - 2.0 * top_layer_mm;
-    if (LowerPointsSeenThroughStrip(g, k, 2.0 * from - g.half[s.axis] + kInsideMm,
-                                    g.half[s.axis] - kInsideMm, kInsideMm, pose->height_mm, low,
-                                    points, weak, camera_centres) >
-        options.max_contradicting_points) {
-      ++report.refused_by_points;
-      if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
-      continue;
-    }
-    report.extension_mm[k] = best;
-    f = g;
   }
   for (int k = 0; k < 4; ++k) {
     if (report.end_support_before[k] < options.min_end_support && report.extension_mm[k] == 0.0) {
@@ -589,6 +605,15 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     }
   }
   report.unplaced_sides += lines_unplaced;
+  if (first.moved_mm() != 0.0) {
+    // After a second pass: the sides' support before any move, and whatever either pass
+    // found, with the unplaced sides of where they now lie.
+    for (int k = 0; k < 4; ++k) report.end_support_before[k] = first.end_support_before[k];
+    report.refused_by_points = std::max(report.refused_by_points, first.refused_by_points);
+    report.edge_inside = std::max(report.edge_inside, first.edge_inside);
+    report.line_on_face = std::max(report.line_on_face, first.line_on_face);
+    report.end_edge_reversed = std::max(report.end_edge_reversed, first.end_edge_reversed);
+  }
   if (report.moved_mm() == 0.0) return report;
   if (f.half[1] > f.half[0]) {
     // The moves made the short side the long one: the yaw (the long side's direction) would
@@ -718,4 +743,5 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
 }
 
 }  // namespace hnnstereo::vision
+
 

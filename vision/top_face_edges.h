@@ -72,6 +72,10 @@ struct TopFaceEdgeOptions {
   /// outline (a shadow's far edge on the ground, matched at the top's height: gap0 249002, a
   /// 45 mm wide top seen 58 mm wide, 6.6 mm off), and the side lies beyond the face's edge.
   bool end_edge_polarity = true;
+  /// When the sides move, test them all again from where they now lie: each side's test reads
+  /// its neighbouring sides' lines, which may move after it (gap0 299057: a top's end at a
+  /// shadow's edge tested while its sides lay 2-5 mm off the face's edges).
+  bool second_pass = true;
   std::string Check() const;
 };
 

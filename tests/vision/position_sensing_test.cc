@@ -993,6 +993,30 @@ TEST(PositionSensing, ABoxTopStretchedToItsShadowsFarEdgeIsCutBack) {
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(249002, before));
 }
 
+TEST(PositionSensing, ABoxTopsSidesAreTestedAgainWhereTheyMoved) {
+  // Fresh stress run, `render --seed 299057 --min-gap 0`: a 71 x 30 mm box, 12 mm tall, whose
+  // far end lies in a 138 mm cylinder's shadow, seen 52 x 36 mm. Its end at the shadow's edge
+  // was tested while its sides still lay 2-5 mm off the face's edges (one moved in after it),
+  // so the face's sides did not show past that edge and the top was sent 9.6 mm off. Tested
+  // again where the sides moved (TopFaceEdgeOptions::second_pass), the end is a line across
+  // the face whose end is not found: flagged.
+  // (SenseWithAndWithout turns the unplaced-side flag off on both sides: the test reads the
+  // count it flags on.)
+  PositionSensingOptions before = CpuOptions();
+  before.top_edges.second_pass = false;
+  const SensedTwice sensed = SenseTouchingWithAndWithout(299057, before);
+  const auto unplaced_at_the_low_box = [&](const PositionSensingReport& report) {
+    int unplaced = -1;
+    for (const ObjectPose& pose : report.objects) {
+      if (std::abs(pose.height_mm - 12.4) < 2.0) unplaced = pose.unplaced_sides;
+    }
+    return unplaced;
+  };
+  EXPECT_GE(unplaced_at_the_low_box(sensed.report), 1);
+  EXPECT_EQ(unplaced_at_the_low_box(sensed.before), 0) << "the failure the rule exists for";
+  EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1);
+}
+
 TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
   // Stress run, `render --seed 179050 --min-gap 0`: a 75 x 50 mm box, 80 mm tall; the far 7 mm
   // of its top lie in a 115 mm neighbour's shadow, as dark as the ground around, so its sides
