@@ -537,8 +537,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
       for (std::size_t b = 0; b < report.objects.size(); ++b) {
         const ObjectPose& piece = report.objects[b];
         if (b == a || piece.round || piece.top_rectangle.width >= options.min_whole_top_width_mm ||
-            std::abs(piece.height_mm - pose.height_mm) > pose_options.top_layer_mm ||
-            RectangleGap(piece.top_rectangle, TopFootprint(pose)) > options.left_out_piece_reach_mm) {
+            std::abs(piece.height_mm - pose.height_mm) >
+                pose_options.max_split_height_difference_mm ||
+            RectangleGap(piece.top_rectangle, TopFootprint(pose)) >
+                options.left_out_piece_reach_mm) {
           continue;
         }
         pose.piece_left_out = true;

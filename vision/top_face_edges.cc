@@ -576,9 +576,20 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
         }
       }
       // A side at a line across the face whose end was not found: the face goes on past it,
-      // nobody knows how far.
+      // nobody knows how far - unless the face's sides stop past the wall the camera sees
+      // beyond that side: then what went on in line with them was that wall, and the line is
+      // the face's end (default 155049: a 54 x 27 mm top beside its own end wall, seen 11 mm
+      // wide; found once its sides had moved onto the face's edges).
       if (found <= 0.0) {
-        if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
+        if (line_at_side && at_edge) {
+          const double past_wall = f.half[s.axis] + wall_seen_mm(k) + kPastWallMm;
+          if (!options.end_at_own_wall ||
+              NeighbourSidesSupport(probe, f, k, past_wall, past_wall + kSidesPastMm, step,
+                                    options.corner_margin_mm, neighbour_walls(k))
+                      .value_or(0.0) >= options.min_side_support) {
+            ++lines_unplaced;
+          }
+        }  // else counted below
         continue;
       }
       const double best = strongest_line(k, found);

@@ -76,6 +76,11 @@ struct TopFaceEdgeOptions {
   /// its neighbouring sides' lines, which may move after it (gap0 299057: a top's end at a
   /// shadow's edge tested while its sides lay 2-5 mm off the face's edges).
   bool second_pass = true;
+  /// A side at a line across the face whose end the search does not find counts as unplaced
+  /// only when the face's sides go on past the wall the camera sees beyond it (by 3 mm, over
+  /// 4 mm): where they stop there, what went on in line with them was the face's own end
+  /// wall, and the side is the face's end (default 155049).
+  bool end_at_own_wall = true;
   std::string Check() const;
 };
 
