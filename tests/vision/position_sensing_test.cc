@@ -1017,6 +1017,29 @@ TEST(PositionSensing, ABoxTopsSidesAreTestedAgainWhereTheyMoved) {
   EXPECT_GE(FarUnflaggedPoses(sensed.before, sensed.scene), 1);
 }
 
+TEST(PositionSensing, ABoxTopsEndBesideItsOwnWallIsPlaced) {
+  // Development range, `render --seed 155049`: a 54 x 27 mm box, 56 mm tall, the left camera
+  // seeing its end wall 11 mm wide beyond its end, in line with its sides. Once its sides had
+  // moved onto the face's edges (the second pass), the wall's edges went on past that end like
+  // the face's sides past a shadow's edge, no end was found beyond the wall, and the good
+  // pose (0.1 mm off) was flagged unplaced. The sides stop past the wall: the end is placed
+  // (TopFaceEdgeOptions::end_at_own_wall).
+  PositionSensingOptions before = CpuOptions();
+  before.top_edges.end_at_own_wall = false;
+  const SensedTwice sensed = SenseWithAndWithout(155049, before);
+  const auto unplaced_at = [&](const PositionSensingReport& report) {
+    int unplaced = -1;
+    for (const ObjectPose& pose : report.objects) {
+      if ((pose.centroid.head<2>() - Eigen::Vector2d(148.1, 320.1)).norm() < 2.0) {
+        unplaced = pose.unplaced_sides;
+      }
+    }
+    return unplaced;
+  };
+  EXPECT_EQ(unplaced_at(sensed.report), 0);
+  EXPECT_GE(unplaced_at(sensed.before), 1) << "the cost the rule exists for";
+}
+
 TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
   // Stress run, `render --seed 179050 --min-gap 0`: a 75 x 50 mm box, 80 mm tall; the far 7 mm
   // of its top lie in a 115 mm neighbour's shadow, as dark as the ground around, so its sides
