@@ -22,7 +22,8 @@
 //                                    (ObjectPoseOptions::hidden_margin_mm 0, for comparison)
 //   HNNSTEREO_STRESS_NO_LEVEL_SPLIT=1  without SplitTopLevels (ObjectPoseOptions::
 //                                    min_top_level_difference_mm 0, for comparison)
-//   HNNSTEREO_STRESS_STOP=decisions  the decisions stop rule (hnn-default's) instead of the energy rule
+//   HNNSTEREO_STRESS_STOP=energy     the energy stop rule (every 5 steps, 3 in a row) instead of
+//                                    the decisions rule of the defaults
 //   HNNSTEREO_STRESS_TOP_EDGES=0     without the image-edge fit of box tops
 //   HNNSTEREO_STRESS_LINES=0         the fit not looking past lines across a face
 //                                    (TopFaceEdgeOptions::look_past_lines_on_face)
@@ -188,11 +189,11 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   const std::uint64_t first_seed = std::stoull(Env("HNNSTEREO_STRESS_FIRST_SEED", "5000"));
   const bool true_cameras = Env("HNNSTEREO_STRESS_TRUE_CAMERAS", "0") == "1";
   PositionSensingOptions sensing;  // the library's defaults: what `pick` runs
-  if (Env("HNNSTEREO_STRESS_STOP", "") == "decisions") {
-    // The match preset's stop rule instead of the energy rule (to measure it on these scenes).
-    sensing.matcher.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
-    sensing.matcher.dynamics.energy_interval = 2;
-    sensing.matcher.dynamics.stable_checks = 2;
+  if (Env("HNNSTEREO_STRESS_STOP", "") == "energy") {
+    // The energy stop rule, the defaults' before (to compare on these scenes).
+    sensing.matcher.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
+    sensing.matcher.dynamics.energy_interval = 5;
+    sensing.matcher.dynamics.stable_checks = 3;
   }
   sensing.matcher.engine = hnn::EngineKind::kCpu;
   if (Env("HNNSTEREO_STRESS_OLD_MERGE", "0") == "1") sensing.pose.join_face_outlines = false;
