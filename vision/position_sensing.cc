@@ -577,6 +577,9 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
             report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
             max_length, pose_options.centroid_from_rectangle, options.top_edges);
         report.objects[a].image_edge_moved_mm = extension.moved_mm();
+        TurnTopToImageEdges(&report.objects[a], calibration.P1, gradient_x, gradient_y,
+                            pose_options.yaw_method == YawMethod::kMinAreaRectangle,
+                            options.top_edges);
         report.objects[a].unplaced_sides = extension.unplaced_sides;
         if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report.objects[a].merged) {
           report.objects[a].merged = true;

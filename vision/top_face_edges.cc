@@ -347,6 +347,11 @@ std::string TopFaceEdgeOptions::Check() const {
     return "top edges: max_cut_fraction must be in [0, 1]";
   }
   if (max_contradicting_points < 0) return "top edges: max_contradicting_points must be >= 0";
+  if (!(max_yaw_turn_deg >= 0.0 && max_yaw_turn_deg <= 45.0)) {
+    return "top edges: max_yaw_turn_deg must be in [0, 45]";
+  }
+  if (!(yaw_step_deg > 0.0)) return "top edges: yaw_step_deg must be > 0";
+  if (!(min_yaw_turn_gain >= 0.0)) return "top edges: min_yaw_turn_gain must be >= 0";
   return {};
 }
 
@@ -648,6 +653,53 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     pose->centroid.y() = r.centre.y();
   }
   return report;
+}
+
+double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
+                           const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options) {
+  if (pose->round || gradient_x.empty() || !(options.max_yaw_turn_deg > 0.0)) return 0.0;
+  const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient);
+  // The gradient along the outline: each side's mean gradient on its line (at its best offset
+  // within kSlackMm, so that a side the points placed a little off still counts), weighted by
+  // the side's length.
+  constexpr double kSlackMm = 1.5;
+  const auto outline_strength = [&](double turn_deg) {
+    Rectangle2D r = pose->top_rectangle;
+    r.yaw_deg += turn_deg;
+    const Frame f = FrameOf(r);
+    double total = 0.0;
+    for (int k = 0; k < 4; ++k) {
+      double best = 0.0;
+      for (double e = -kSlackMm; e <= kSlackMm + 1e-9; e += options.step_mm) {
+        best = std::max(best, SideStrength(probe, Extended(f, k, e), k, options));
+      }
+      total += best * 2.0 * f.half[1 - SideOf(k).axis];
+    }
+    return total;
+  };
+  const double unturned = outline_strength(0.0);
+  double best_turn = 0.0, best = unturned;
+  // Coarse, then fine around the coarse best.
+  const double coarse = 4.0 * options.yaw_step_deg;
+  for (double t = -options.max_yaw_turn_deg; t <= options.max_yaw_turn_deg + 1e-9; t += coarse) {
+    if (const double strength = outline_strength(t); strength > best) {
+      best = strength;
+      best_turn = t;
+    }
+  }
+  const double around = best_turn;
+  for (double t = around - coarse; t <= around + coarse + 1e-9; t += options.yaw_step_deg) {
+    if (std::abs(t) > options.max_yaw_turn_deg) continue;
+    if (const double strength = outline_strength(t); strength > best) {
+      best = strength;
+      best_turn = t;
+    }
+  }
+  if (best_turn == 0.0 || !(best >= (1.0 + options.min_yaw_turn_gain) * unturned)) return 0.0;
+  pose->top_rectangle.yaw_deg = NormaliseAxisAngle(pose->top_rectangle.yaw_deg + best_turn);
+  if (yaw_from_rectangle) pose->yaw_deg = pose->top_rectangle.yaw_deg;
+  return best_turn;
 }
 
 std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,

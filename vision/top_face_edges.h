@@ -81,6 +81,11 @@ struct TopFaceEdgeOptions {
   /// 4 mm): where they stop there, what went on in line with them was the face's own end
   /// wall, and the side is the face's end (default 155049).
   bool end_at_own_wall = true;
+  /// TurnTopToImageEdges: the largest turn tried (degrees either way; 0 disables), its step,
+  /// and the gain in gradient along the outline a turn needs over the unturned rectangle.
+  double max_yaw_turn_deg = 8.0;
+  double yaw_step_deg = 0.25;
+  double min_yaw_turn_gain = 0.1;
   std::string Check() const;
 };
 
@@ -107,14 +112,26 @@ struct TopFaceEdgeReport {
   }
 };
 
+/// Turns `pose`'s top rectangle (not round poses) about its centre to where its outline runs
+/// along the face's edges in one image: the turn, in steps of yaw_step_deg up to
+/// max_yaw_turn_deg either way, with the most gradient along the four sides (each at its best
+/// offset within 1.5 mm, weighted by its length), kept when that beats the unturned rectangle
+/// by min_yaw_turn_gain. The points' minimum-area rectangle takes its yaw from the outline
+/// points, which scatter and stop short where the edges run along the epipolar lines. Updates
+/// the rectangle's yaw and, when `yaw_from_rectangle`, the pose's; returns the turn (degrees).
+double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
+                           const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options = {});
+
 /// Moves the sides of `pose`'s top rectangle (not round poses) in or out to the face's edges in
 /// one image (seen through the 3 x 4 projection `P`; `gradient_x`, `gradient_y` its 3 x 3
 /// Sobel gradients, CV_32F; see TopFaceEdgeOptions), never into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
 /// `max_length_mm`. `points`/`weak` are all triangulated points and `camera_centres` the
 /// cameras that saw them, for the occlusion test; the pose's own `point_indices` into them
 /// decide whether a side may move in. Updates the rectangle and, when
-/// `centroid_from_rectangle`, the centroid's x, y; the yaw never changes (moves that would make
-/// the short side the long one are all undone).
+/// `centroid_from_rectangle`, the centroid's x, y; the yaw does not change here
+/// (TurnTopToImageEdges turns it; moves that would make the short side the long one are all
+/// undone).
 TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
                                         const cv::Mat& gradient_x, const cv::Mat& gradient_y,
                                         const std::vector<Rectangle2D>& others,

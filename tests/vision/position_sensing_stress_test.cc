@@ -35,6 +35,7 @@
 //                                    (top_edges.end_edge_polarity)
 //   HNNSTEREO_STRESS_SECOND_PASS=0   image fit in one pass (top_edges.second_pass)
 //   HNNSTEREO_STRESS_OWN_WALL=0      unplaced sides without the end-wall test (top_edges.end_at_own_wall)
+//   HNNSTEREO_STRESS_YAW_TURN=DEG    largest yaw turn to the image's edges (top_edges.max_yaw_turn_deg; 0 off)
 //   HNNSTEREO_STRESS_SLIVERS=0       without the flag for tops beside a reported sliver
 //                                    (flag_tops_beside_slivers)
 //   HNNSTEREO_STRESS_WHOLE_TOP_MIN=0 drop every part under min_strong_points, flagged or not
@@ -217,6 +218,8 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   sensing.top_edges.end_edge_polarity = Env("HNNSTEREO_STRESS_END_POLARITY", "1") != "0";
   sensing.top_edges.second_pass = Env("HNNSTEREO_STRESS_SECOND_PASS", "1") != "0";
   sensing.top_edges.end_at_own_wall = Env("HNNSTEREO_STRESS_OWN_WALL", "1") != "0";
+  sensing.top_edges.max_yaw_turn_deg = std::stod(Env(
+      "HNNSTEREO_STRESS_YAW_TURN", std::to_string(sensing.top_edges.max_yaw_turn_deg)));
   sensing.pose.face_end_line_mm =
       std::stod(Env("HNNSTEREO_STRESS_FACE_END_MM", std::to_string(sensing.pose.face_end_line_mm)));
   sensing.extend_tops_to_image_edges = Env("HNNSTEREO_STRESS_TOP_EDGES", "1") != "0";

@@ -200,6 +200,39 @@ TEST(TopFaceEdges, AWholeTopStaysAsItIs) {
   EXPECT_DOUBLE_EQ(pose.top_rectangle.length, 60.0);
 }
 
+TEST(TopFaceEdges, ATopTurnsToTheFacesEdges) {
+  // The points' rectangle turned 4 degrees off the face (outline points scatter, and stop
+  // short where the edges run along the epipolar lines): turned back to the drawn face.
+  const DrawnTop d = Draw();
+  for (const double off : {4.0, -2.5, 7.0}) {
+    SCOPED_TRACE(off);
+    ObjectPose pose = CutPose(d.height);
+    pose.top_rectangle.centre.x() = 0.0;
+    pose.top_rectangle.length = 60.0;
+    pose.top_rectangle.yaw_deg = off;
+    pose.yaw_deg = off;
+    const double turn = TurnTopToImageEdges(&pose, d.P, d.gradient_x, d.gradient_y, true);
+    EXPECT_NEAR(turn, -off, 0.5);
+    EXPECT_NEAR(pose.top_rectangle.yaw_deg, 0.0, 0.5);
+    EXPECT_DOUBLE_EQ(pose.yaw_deg, pose.top_rectangle.yaw_deg);
+  }
+  // On the face already: no turn. Without the turn (0 degrees allowed): none either.
+  ObjectPose on = CutPose(d.height);
+  on.top_rectangle.centre.x() = 0.0;
+  on.top_rectangle.length = 60.0;
+  EXPECT_EQ(TurnTopToImageEdges(&on, d.P, d.gradient_x, d.gradient_y, true), 0.0);
+  ObjectPose off = on;
+  off.top_rectangle.yaw_deg = 4.0;
+  TopFaceEdgeOptions no_turn;
+  no_turn.max_yaw_turn_deg = 0.0;
+  EXPECT_EQ(TurnTopToImageEdges(&off, d.P, d.gradient_x, d.gradient_y, true, no_turn), 0.0);
+  EXPECT_EQ(off.top_rectangle.yaw_deg, 4.0);
+  // A round top is left alone.
+  ObjectPose round = off;
+  round.round = true;
+  EXPECT_EQ(TurnTopToImageEdges(&round, d.P, d.gradient_x, d.gradient_y, true), 0.0);
+}
+
 TEST(TopFaceEdges, TheSideStopsAtTheFacesEdge) {
   // A face of 48 x 30 drawn: the side moves to its edge, not on to anything beyond.
   DrawnTop d = Draw(48.0, 30.0);
@@ -407,6 +440,12 @@ TEST(TopFaceEdges, BadOptionsAreRefused) {
   options = {};
   options.min_end_support = 1.5;
   EXPECT_NE(options.Check().find("min_end_support"), std::string::npos);
+  options = {};
+  options.max_yaw_turn_deg = -1.0;
+  EXPECT_NE(options.Check().find("max_yaw_turn_deg"), std::string::npos);
+  options = {};
+  options.yaw_step_deg = 0.0;
+  EXPECT_NE(options.Check().find("yaw_step_deg"), std::string::npos);
 }
 
 }  // namespace
