@@ -50,6 +50,9 @@ std::string ObjectPoseOptions::Check() const {
     out << "ObjectPoseOptions: min_circle_inlier_fraction, min_rim_coverage and "
            "max_outside_circle_fraction must be in [0, 1], circle_band_fraction and "
            "circle_band_min_mm >= 0";
+  } else if (!(max_round_top_fill > 0.0)) {
+    out << "ObjectPoseOptions.max_round_top_fill must be positive (is " << max_round_top_fill
+        << ")";
   } else if (!(max_split_height_difference_mm >= 0.0 && max_hidden_fraction >= 0.0)) {
     out << "ObjectPoseOptions: max_split_height_difference_mm and max_hidden_fraction must be >= 0";
   } else if (!(max_gap_points >= 0 && gap_margin_mm >= 0.0 && std::isfinite(gap_margin_mm))) {
@@ -463,7 +466,8 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
     // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
     constexpr std::size_t kMinCirclePoints = 60;
-    const bool enough = hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints;
+    const bool enough = hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints &&
+                        !(pose.top_fill > options.max_round_top_fill);
     double diameter = 0.0;
     for (std::size_t a = 0; enough && a < hull.size(); ++a) {
       for (std::size_t b = a + 1; b < hull.size(); ++b) {

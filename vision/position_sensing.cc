@@ -425,10 +425,22 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   if (options.clustering == ClusteringMethod::kGrid) {
     if (options.merge_top_face_islands) {
       PiecesSeenApart seen_apart = nullptr;
-      if (options.join_islands_seen_as_one_face && !left_grey.empty()) {
-        need_gradients();
-        seen_apart = [&](const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b,
-                         double height) {
+      const bool look = options.join_islands_seen_as_one_face && !left_grey.empty();
+      const bool too_long = options.keep_apart_longer_than_any_part &&
+                            options.max_whole_top_length_mm > 0.0;
+      if (look) need_gradients();
+      if (look || too_long) {
+        seen_apart = [&, look, too_long](const std::vector<Eigen::Vector2d>& a,
+                                         const std::vector<Eigen::Vector2d>& b, double height) {
+          // Two pieces whose joint top would be longer than any part are two parts (it would
+          // be flagged as parts joined: default 419163, 419168, two boxes of one height
+          // 15-30 mm apart, each lost).
+          if (too_long) {
+            std::vector<Eigen::Vector2d> joint = a;
+            joint.insert(joint.end(), b.begin(), b.end());
+            if (MinAreaRectangle(joint).length > options.max_whole_top_length_mm) return true;
+          }
+          if (!look) return false;
           const std::optional<GapBetweenPieces> gap = LookAcrossGap(
               a, b, height, calibration.P1, gradient_x, gradient_y, options.top_edges);
           return gap && gap->sides_support < options.top_edges.min_side_support &&
@@ -741,7 +753,9 @@ TruthComparison CompareWithTruth(const std::vector<ObjectPose>& detected,
     pair.height_error_mm = pose.height_mm - object.height_mm();
     pair.yaw_defined = object.shape == SceneObject::Shape::kBox;
     if (pair.yaw_defined) {
-      pair.yaw_error_deg = std::abs(NormaliseAxisAngle(pose.yaw_deg - object.yaw_deg));
+      // The yaw a robot gets: 0 for a top taken for round (app: SensedObjectsOf).
+      const double sent_yaw = pose.round ? 0.0 : pose.yaw_deg;
+      pair.yaw_error_deg = std::abs(NormaliseAxisAngle(sent_yaw - object.yaw_deg));
     }
     ++comparison.detected;
   }

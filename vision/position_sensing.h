@@ -60,6 +60,12 @@ struct PositionSensingOptions {
   /// apart, each pair joined into one flagged top, both missed); the pieces of one plain face
   /// show its sides across the gap, and no edge where its points stop.
   bool join_islands_seen_as_one_face = true;
+  /// Two pieces whose joint top (minimum-area rectangle of their top points) would be longer
+  /// than max_whole_top_length_mm are not joined: the joint part would be flagged as parts
+  /// joined (below), where each piece may be a whole part (default 419163: two 11 mm boxes
+  /// 58 and 59 mm long, 72 mm apart centre to centre; 419168: two 130 mm boxes; all four
+  /// lost as one flagged false part).
+  bool keep_apart_longer_than_any_part = true;
   /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
   /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had
   /// 20-50 strong points, true ones well over 100.

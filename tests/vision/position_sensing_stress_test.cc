@@ -36,6 +36,9 @@
 //   HNNSTEREO_STRESS_SECOND_PASS=0   image fit in one pass (top_edges.second_pass)
 //   HNNSTEREO_STRESS_OWN_WALL=0      unplaced sides without the end-wall test (top_edges.end_at_own_wall)
 //   HNNSTEREO_STRESS_YAW_TURN=DEG    largest yaw turn to the image's edges (top_edges.max_yaw_turn_deg; 0 off)
+//   HNNSTEREO_STRESS_KEEP_LONG_APART=0  island joins longer than any part allowed
+//                                    (keep_apart_longer_than_any_part)
+//   HNNSTEREO_STRESS_ROUND_FILL=F    largest fill of a round top (pose.max_round_top_fill)
 //   HNNSTEREO_STRESS_SLIVERS=0       without the flag for tops beside a reported sliver
 //                                    (flag_tops_beside_slivers)
 //   HNNSTEREO_STRESS_WHOLE_TOP_MIN=0 drop every part under min_strong_points, flagged or not
@@ -215,6 +218,9 @@ TEST(PositionSensingStress, ScenesFromTheRenderersDistribution) {
   if (Env("HNNSTEREO_STRESS_NO_ISLANDS", "0") == "1") sensing.merge_top_face_islands = false;
   sensing.join_islands_seen_as_one_face = Env("HNNSTEREO_STRESS_JOIN_IMAGE", "1") != "0";
   sensing.flag_tops_beside_slivers = Env("HNNSTEREO_STRESS_SLIVERS", "1") != "0";
+  sensing.pose.max_round_top_fill = std::stod(
+      Env("HNNSTEREO_STRESS_ROUND_FILL", std::to_string(sensing.pose.max_round_top_fill)));
+  sensing.keep_apart_longer_than_any_part = Env("HNNSTEREO_STRESS_KEEP_LONG_APART", "1") != "0";
   sensing.top_edges.end_edge_polarity = Env("HNNSTEREO_STRESS_END_POLARITY", "1") != "0";
   sensing.top_edges.second_pass = Env("HNNSTEREO_STRESS_SECOND_PASS", "1") != "0";
   sensing.top_edges.end_at_own_wall = Env("HNNSTEREO_STRESS_OWN_WALL", "1") != "0";

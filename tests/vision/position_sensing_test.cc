@@ -438,9 +438,9 @@ SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
                                 PositionSensingOptions before,
                                 PositionSensingOptions sensing = CpuOptions()) {
   // The two flags that read a top's outline against the image and its neighbours
-  // (flag_unplaced_sides, shadow_strip_reach_mm), and the image's veto on island joins
-  // (join_islands_seen_as_one_face), also catch many of the failures the older rules were
-  // built on: where a comparison does not test one of them, it is off on both sides, so that
+  // (flag_unplaced_sides, shadow_strip_reach_mm), and the vetoes on island joins
+  // (join_islands_seen_as_one_face, keep_apart_longer_than_any_part), also catch many of the
+  // failures the older rules were built on: where a comparison does not test one of them, it is off on both sides, so that
   // each rule is shown to matter on its own seed.
   if (before.flag_unplaced_sides == sensing.flag_unplaced_sides) {
     before.flag_unplaced_sides = sensing.flag_unplaced_sides = false;
@@ -450,6 +450,9 @@ SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
   }
   if (before.shadow_strip_reach_mm == sensing.shadow_strip_reach_mm) {
     before.shadow_strip_reach_mm = sensing.shadow_strip_reach_mm = 0.0;
+  }
+  if (before.keep_apart_longer_than_any_part == sensing.keep_apart_longer_than_any_part) {
+    before.keep_apart_longer_than_any_part = sensing.keep_apart_longer_than_any_part = false;
   }
   const std::uint64_t seed = options.seed;
   SensedTwice sensed;
@@ -527,6 +530,17 @@ TEST(PositionSensing, TwoBoxesThatTheImageShowsApartStayTwo) {
     const SensedTwice sensed = SenseWithAndWithout(seed, before);
     ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the join the image vetoes");
   }
+}
+
+TEST(PositionSensing, TwoPiecesLongerThanAnyPartStayTwo) {
+  // Fresh stress run, `render --seed 419163`: two boxes 58 x 34 and 59 x 36 mm, both 11 mm
+  // tall, 72 mm apart centre to centre; the island merge joined them into one top longer than
+  // any part, flagged as parts joined: both missed. A join whose top would be longer than
+  // max_whole_top_length_mm is refused (keep_apart_longer_than_any_part).
+  PositionSensingOptions before = CpuOptions();
+  before.keep_apart_longer_than_any_part = false;
+  const SensedTwice sensed = SenseWithAndWithout(419163, before);
+  ExpectEveryPartFoundAndOneLostWithoutTheRule(sensed, "the join refused");
 }
 
 TEST(PositionSensing, ASmallBoxWithWeakLongSidesIsKeptWhenNothingFlagsIt) {
@@ -1066,6 +1080,37 @@ TEST(PositionSensing, BoxTopsTakeTheirYawFromTheImagesEdges) {
     EXPECT_LE(worst_yaw(sensed.truth), 2.0);
     EXPECT_GE(worst_yaw(sensed.truth_before), 3.0) << "the failure the rule exists for";
   }
+}
+
+TEST(PositionSensing, ABoxTopThatFillsItsRectangleIsNoDisc) {
+  // Fresh stress run, `render --seed 389199`: a 72 x 29 mm box whose top, a full rectangle
+  // (fill 0.99), fitted the robust circle of a partly seen disc - its ends lie on the
+  // circumscribed circle - and was sent as a round top, with yaw 0 (gap0 439006 likewise: a
+  // 73 x 59 mm box sent 4.1 mm off from the circle's centre). A disc, whole or cut by a
+  // chord, fills at most about 0.85 of its rectangle (ObjectPoseOptions::max_round_top_fill).
+  PositionSensingOptions before = CpuOptions();
+  before.pose.max_round_top_fill = 1.0;
+  const SensedTwice sensed = SenseWithAndWithout(389199, before);
+  int round_boxes = 0, round_boxes_before = 0;
+  double worst_yaw = 0.0, worst_yaw_before = 0.0;
+  for (std::size_t i = 0; i < sensed.scene.objects.size(); ++i) {
+    if (sensed.scene.objects[i].shape != SceneObject::Shape::kBox) continue;
+    const TruthPairing& pair = sensed.truth.pairs[i];
+    const TruthPairing& pair_before = sensed.truth_before.pairs[i];
+    if (pair.detected_index >= 0) {
+      round_boxes += sensed.report.objects[static_cast<std::size_t>(pair.detected_index)].round;
+      worst_yaw = std::max(worst_yaw, pair.yaw_error_deg);  // the yaw sent: 0 when round
+    }
+    if (pair_before.detected_index >= 0) {
+      round_boxes_before +=
+          sensed.before.objects[static_cast<std::size_t>(pair_before.detected_index)].round;
+      worst_yaw_before = std::max(worst_yaw_before, pair_before.yaw_error_deg);
+    }
+  }
+  EXPECT_EQ(round_boxes, 0);
+  EXPECT_LE(worst_yaw, 2.0);
+  EXPECT_GE(round_boxes_before, 1) << "the failure the rule exists for";
+  EXPECT_GT(worst_yaw_before, 10.0);
 }
 
 TEST(PositionSensing, ABoxTopWithAnEmptyStripToATallerPartIsFlagged) {
