@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -1013,6 +1014,17 @@ TEST(PositionSensing, ABoxTopStretchedToItsShadowsFarEdgeIsCutBack) {
   ExpectNoFarUnflaggedPoseAndOneWithoutTheRule(SenseTouchingWithAndWithout(249002, before));
 }
 
+// The unplaced sides (TopFaceEdgeReport::unplaced_sides) of the last pose that `is_it`
+// picks, -1 when none does.
+int UnplacedSidesOfThePose(const PositionSensingReport& report,
+                           const std::function<bool(const ObjectPose&)>& is_it) {
+  int unplaced = -1;
+  for (const ObjectPose& pose : report.objects) {
+    if (is_it(pose)) unplaced = pose.unplaced_sides;
+  }
+  return unplaced;
+}
+
 TEST(PositionSensing, ABoxTopsSidesAreTestedAgainWhereTheyMoved) {
   // Fresh stress run, `render --seed 299057 --min-gap 0`: a 71 x 30 mm box, 12 mm tall, whose
   // far end lies in a 138 mm cylinder's shadow, seen 52 x 36 mm. Its end at the shadow's edge
@@ -1025,12 +1037,10 @@ TEST(PositionSensing, ABoxTopsSidesAreTestedAgainWhereTheyMoved) {
   PositionSensingOptions before = CpuOptions();
   before.top_edges.second_pass = false;
   const SensedTwice sensed = SenseTouchingWithAndWithout(299057, before);
-  const auto unplaced_at_the_low_box = [&](const PositionSensingReport& report) {
-    int unplaced = -1;
-    for (const ObjectPose& pose : report.objects) {
-      if (std::abs(pose.height_mm - 12.4) < 2.0) unplaced = pose.unplaced_sides;
-    }
-    return unplaced;
+  const auto unplaced_at_the_low_box = [](const PositionSensingReport& report) {
+    return UnplacedSidesOfThePose(report, [](const ObjectPose& pose) {
+      return std::abs(pose.height_mm - 12.4) < 2.0;
+    });
   };
   EXPECT_GE(unplaced_at_the_low_box(sensed.report), 1);
   EXPECT_EQ(unplaced_at_the_low_box(sensed.before), 0) << "the failure the rule exists for";
@@ -1047,14 +1057,10 @@ TEST(PositionSensing, ABoxTopsEndBesideItsOwnWallIsPlaced) {
   PositionSensingOptions before = CpuOptions();
   before.top_edges.end_at_own_wall = false;
   const SensedTwice sensed = SenseWithAndWithout(155049, before);
-  const auto unplaced_at = [&](const PositionSensingReport& report) {
-    int unplaced = -1;
-    for (const ObjectPose& pose : report.objects) {
-      if ((pose.centroid.head<2>() - Eigen::Vector2d(148.1, 320.1)).norm() < 2.0) {
-        unplaced = pose.unplaced_sides;
-      }
-    }
-    return unplaced;
+  const auto unplaced_at = [](const PositionSensingReport& report) {
+    return UnplacedSidesOfThePose(report, [](const ObjectPose& pose) {
+      return (pose.centroid.head<2>() - Eigen::Vector2d(148.1, 320.1)).norm() < 2.0;
+    });
   };
   EXPECT_EQ(unplaced_at(sensed.report), 0);
   EXPECT_GE(unplaced_at(sensed.before), 1) << "the cost the rule exists for";
