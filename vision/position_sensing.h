@@ -178,9 +178,10 @@ struct PositionSensingOptions {
   /// The same for a sliver reported as a part: a top beside a part narrower than
   /// min_whole_top_width_mm (itself flagged) at its height (within the 2 mm that the pieces
   /// of one face agree to, ObjectPoseOptions::max_split_height_difference_mm), within
-  /// left_out_piece_reach_mm, may be the rest of that face, and its pose the centre of a piece (default seed 289060: a 67 x
-  /// 51 mm top, 146 mm tall, seen as a 60 x 16 mm strip and a 67 x 37 mm rest that fitted a
-  /// partly seen disc, sent 13.3 mm off). Flagged merged and ObjectPose::piece_left_out.
+  /// left_out_piece_reach_mm, may be the rest of that face, and its pose the centre of a piece
+  /// (default seed 289060: a 67 x 51 mm top, 146 mm tall, seen as a 60 x 16 mm strip and a
+  /// 67 x 37 mm rest that fitted a partly seen disc, sent 13.3 mm off). Flagged merged and
+  /// ObjectPose::piece_left_out.
   bool flag_tops_beside_slivers = true;
   /// A box whose top has an empty strip (at most max_shadow_strip_points strong points at any
   /// height) between one of its sides and a taller part up to this far (mm) beyond it, along

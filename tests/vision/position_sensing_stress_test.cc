@@ -34,8 +34,10 @@
 //   HNNSTEREO_STRESS_END_POLARITY=0  image fit without the end edge's polarity test
 //                                    (top_edges.end_edge_polarity)
 //   HNNSTEREO_STRESS_SECOND_PASS=0   image fit in one pass (top_edges.second_pass)
-//   HNNSTEREO_STRESS_OWN_WALL=0      unplaced sides without the end-wall test (top_edges.end_at_own_wall)
-//   HNNSTEREO_STRESS_YAW_TURN=DEG    largest yaw turn to the image's edges (top_edges.max_yaw_turn_deg; 0 off)
+//   HNNSTEREO_STRESS_OWN_WALL=0      unplaced sides without the end-wall test
+//                                    (top_edges.end_at_own_wall)
+//   HNNSTEREO_STRESS_YAW_TURN=DEG    largest yaw turn to the image's edges
+//                                    (top_edges.max_yaw_turn_deg; 0 off)
 //   HNNSTEREO_STRESS_KEEP_LONG_APART=0  island joins longer than any part allowed
 //                                    (keep_apart_longer_than_any_part)
 //   HNNSTEREO_STRESS_ROUND_FILL=F    largest fill of a round top (pose.max_round_top_fill)

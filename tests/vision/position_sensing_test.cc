@@ -441,8 +441,8 @@ SensedTwice SenseWithAndWithout(const SceneRenderOptions& options,
   // The two flags that read a top's outline against the image and its neighbours
   // (flag_unplaced_sides, shadow_strip_reach_mm), and the vetoes on island joins
   // (join_islands_seen_as_one_face, keep_apart_longer_than_any_part), also catch many of the
-  // failures the older rules were built on: where a comparison does not test one of them, it is off on both sides, so that
-  // each rule is shown to matter on its own seed.
+  // failures the older rules were built on: where a comparison does not test one of them, it
+  // is off on both sides, so that each rule is shown to matter on its own seed.
   if (before.flag_unplaced_sides == sensing.flag_unplaced_sides) {
     before.flag_unplaced_sides = sensing.flag_unplaced_sides = false;
   }
@@ -1079,7 +1079,9 @@ TEST(PositionSensing, BoxTopsTakeTheirYawFromTheImagesEdges) {
     const auto worst_yaw = [](const TruthComparison& truth) {
       double worst = 0.0;
       for (const TruthPairing& pair : truth.pairs) {
-        if (pair.detected_index >= 0 && pair.yaw_defined) worst = std::max(worst, pair.yaw_error_deg);
+        if (pair.detected_index >= 0 && pair.yaw_defined) {
+          worst = std::max(worst, pair.yaw_error_deg);
+        }
       }
       return worst;
     };
