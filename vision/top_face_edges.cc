@@ -197,6 +197,32 @@ double SideStrength(const EdgeProbe& probe, const Frame& f, int k, const TopFace
   return SideSegment(f, k, o, &a, &b) ? probe.Strength(a, b, o.step_mm) : 0.0;
 }
 
+// The most that `measure` (of a frame) gives with side k of frame f moved up to `slack` mm
+// either way in `step` steps: a side the points placed a little off its edge still counts.
+template <typename Measure>
+double BestNearSide(const Frame& f, int k, double slack, double step, const Measure& measure) {
+  const Side s = SideOf(k);
+  double best = 0.0;
+  for (double e = -slack; e <= slack + 1e-9; e += step) {
+    if (f.half[s.axis] + 0.5 * e > 0.0) best = std::max(best, measure(Extended(f, k, e)));
+  }
+  return best;
+}
+
+// The polarity the neighbouring side of side k at `across` (-1 or +1 along the other axis)
+// shows along the face from `from` to `to` (mm from f's centre along side k's outward axis):
+// +1 when the image is brighter outside the face, -1 darker, 0 when it shows none.
+double NeighbourSidePolarity(const EdgeProbe& probe, const Frame& f, int k, double across,
+                             double from, double to, double step) {
+  const Side s = SideOf(k);
+  const int other = 1 - s.axis;
+  const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
+  const double mean = probe.MeanOutwardGradient(base + s.sign * from * f.axis[s.axis],
+                                                base + s.sign * to * f.axis[s.axis],
+                                                across * f.axis[other], step);
+  return mean > 0.0 ? 1.0 : (mean < 0.0 ? -1.0 : 0.0);
+}
+
 // Edge support (the lower of the two) of the sides beside side k of frame f, along the stretch
 // from `near` to `far` (mm from f's centre along side k's outward axis); nullopt when that is
 // under two samples long. With `face_corner_margin`, only samples whose gradient has the
@@ -222,11 +248,9 @@ std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame&
     double polarity = 0.0;
     if (face_corner_margin) {
       const double margin = *face_corner_margin;
-      const double face = probe.MeanOutwardGradient(
-          base - s.sign * (f.half[s.axis] - margin) * f.axis[s.axis],
-          base + s.sign * (near - 2.0 * margin) * f.axis[s.axis], outward, step);
-      if (face == 0.0) return 0.0;
-      polarity = face > 0.0 ? 1.0 : -1.0;
+      polarity = NeighbourSidePolarity(probe, f, k, across, -(f.half[s.axis] - margin),
+                                       near - 2.0 * margin, step);
+      if (polarity == 0.0) return 0.0;
     }
     double best = 0.0;
     const double reach = std::max(0.0, wall_mm[across > 0.0 ? 1 : 0]);
@@ -248,16 +272,12 @@ std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame&
 double NeighbourSidesPolarity(const EdgeProbe& probe, const Frame& f, int k, double margin,
                               double step) {
   const Side s = SideOf(k);
-  const int other = 1 - s.axis;
-  if (f.half[s.axis] <= 2.0 * margin) return 0.0;
+  const double reach = f.half[s.axis] - margin;  // from one corner margin to the other
+  if (reach <= margin) return 0.0;
   double polarity = 0.0;
   for (double across : {-1.0, 1.0}) {
-    const Eigen::Vector2d outward = across * f.axis[other];
-    const Eigen::Vector2d base = f.centre + across * f.half[other] * f.axis[other];
-    const double mean = probe.MeanOutwardGradient(base - (f.half[s.axis] - margin) * f.axis[s.axis],
-                                                  base + (f.half[s.axis] - margin) * f.axis[s.axis],
-                                                  outward, step);
-    const double sign = mean > 0.0 ? 1.0 : (mean < 0.0 ? -1.0 : 0.0);
+    const double sign =
+        NeighbourSidePolarity(probe, f, k, across, -s.sign * reach, s.sign * reach, step);
     if (sign == 0.0 || (polarity != 0.0 && sign != polarity)) return 0.0;
     polarity = sign;
   }
@@ -433,11 +453,9 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
     for (int k = 0; k < 4; ++k) {
       const Side s = SideOf(k);
       // Is the side already at an image edge (within 1 mm)?
-      double before = 0.0;
-      for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
-        if (f.half[s.axis] + 0.5 * e <= 0.0) continue;
-        before = std::max(before, SideSupport(probe, Extended(f, k, e), k, options));
-      }
+      double before = BestNearSide(f, k, 1.0, options.step_mm, [&](const Frame& g) {
+        return SideSupport(probe, g, k, options);
+      });
       report.end_support_before[k] = before;
       // An edge under the side with the polarity opposite to the face's outline along its two
       // neighbouring sides is no end of this face: a shadow's outer edge on the ground, matched
@@ -459,11 +477,7 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<do
                 NeighbourSidesPolarity(probe, f, k, options.corner_margin_mm, step);
             polarity != 0.0) {
           face_polarity = polarity;
-          double polar = 0.0;
-          for (double e = -1.0; e <= 1.0 + 1e-9; e += options.step_mm) {
-            if (f.half[s.axis] + 0.5 * e > 0.0)
-              polar = std::max(polar, side_support(Extended(f, k, e)));
-          }
+          const double polar = BestNearSide(f, k, 1.0, options.step_mm, side_support);
           if (polar < options.min_end_support) {
             ++report.end_edge_reversed;
             before = polar;
@@ -670,10 +684,9 @@ double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& 
     const Frame f = FrameOf(r);
     double total = 0.0;
     for (int k = 0; k < 4; ++k) {
-      double best = 0.0;
-      for (double e = -kSlackMm; e <= kSlackMm + 1e-9; e += options.step_mm) {
-        best = std::max(best, SideStrength(probe, Extended(f, k, e), k, options));
-      }
+      const double best = BestNearSide(f, k, kSlackMm, options.step_mm, [&](const Frame& g) {
+        return SideStrength(probe, g, k, options);
+      });
       total += best * 2.0 * f.half[1 - SideOf(k).axis];
     }
     return total;
