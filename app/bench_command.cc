@@ -20,6 +20,7 @@ struct BenchArgs {
   std::string sizes = "500,1000,2000,5000,all";
   std::string storages;
   std::string engines = "opencl,cpu,thesis";
+  std::string solve_loop = "auto";
   bool quick = false;
   bool profile = false;
   perf::ThroughputBenchOptions bench;
@@ -53,6 +54,10 @@ void RunBench(BenchArgs& args) {
   bench.matcher = args.flags.options;
   bench.matcher.candidates.rectified = true;  // the benchmark pair is rectified
   bench.matcher.opencl.profile = args.profile;
+  bench.matcher.opencl.solve_loop =
+      args.solve_loop == "host"     ? hnn::OpenClEngineOptions::SolveLoop::kHost
+      : args.solve_loop == "device" ? hnn::OpenClEngineOptions::SolveLoop::kDevice
+                                    : hnn::OpenClEngineOptions::SolveLoop::kAuto;
   bench.max_disparity = bench.matcher.candidates.max_disparity;
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {
@@ -114,6 +119,7 @@ void RunBench(BenchArgs& args) {
     if (run.contains("weight_storage") && engine.find(':') == std::string::npos) {
       engine += ":" + run["weight_storage"].get<std::string>();
     }
+    if (run.value("solve_loop", "") == "device") engine += " (1 launch)";
     if (run["engine_used"].get<std::string>() != run["engine"].get<std::string>().substr(0, run["engine_used"].get<std::string>().size())) {
       engine = run["engine_used"].get<std::string>() + " (fallback)";
     }
@@ -211,6 +217,11 @@ void AddBenchCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--batch-networks", args->bench.batch_networks,
                   "Batch case: strips of the pair solved as independent networks (0 = none)")
+      ->capture_default_str();
+  cmd->add_option("--solve-loop", args->solve_loop,
+                  "Where the opencl row-block solve loops: auto (in one launch on a CPU device "
+                  "for one small network, else a launch per step), host or device (docs/engine.md)")
+      ->check(CLI::IsMember({"auto", "host", "device"}))
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");
   cmd->add_flag("--profile", args->profile,

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 
@@ -65,6 +66,15 @@ std::optional<WeightStorage> ParseWeightStorage(std::string_view name) {
     if (WeightStorageName(s) == name) return s;
   }
   return std::nullopt;
+}
+
+double ResidentMaxStepBytes(unsigned compute_units) {
+  // With C cores the host loop's step costs about o + W / C (o: a launch and its share of the
+  // round trips, W: the step's work on one core), the device loop's W: they cross at
+  // W = o C / (C - 1), which is kResidentMaxStepBytes at C = 2 (measured there).
+  if (compute_units <= 1) return std::numeric_limits<double>::infinity();
+  const double c = static_cast<double>(compute_units);
+  return kResidentMaxStepBytes * c / (2.0 * (c - 1.0));
 }
 
 std::string KernelBuildOptions(const EnergyOptions& energy, const DynamicsOptions& dynamics) {
@@ -474,7 +484,67 @@ class DeviceNetwork {
     std::vector<int> row_first(rows, 0);
     for (std::size_t i = 0; i < rows; ++i) row_first[i] = static_cast<int>(i) * row_pad_;
     SetUpDecisions(program, row_first, nullptr);
+
+    // The solve loop on the device (OpenClEngineOptions::SolveLoop): one network, no column
+    // sums between steps, the per-item step (not the GPU's group step).
+    const bool can_reside = n_networks() == 1 && !L.column_uniqueness && !row_per_group;
+    const auto units = runtime_.device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
+    resident_ = can_reside && (engine.solve_loop == OpenClEngineOptions::SolveLoop::kDevice ||
+                               (engine.solve_loop == OpenClEngineOptions::SolveLoop::kAuto &&
+                                !gpu && StepBytes() <= ResidentMaxStepBytes(units)));
+    if (resident_) {
+      const auto n_checks = static_cast<std::size_t>(
+          std::max(dynamics.max_steps, 0) / std::max(dynamics.energy_interval, 1) + 2);
+      energy_trace_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * n_checks);
+      outcome_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
+      resident_checks_ = n_checks;
+      const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
+      resident_loop_ = cl::Kernel(program, "solve_blocked_resident");
+      SetArgs(resident_loop_, static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
+              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_,
+              slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
+              two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
+              static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
+              V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_,
+              static_cast<cl_int>(dynamics.max_steps),
+              static_cast<cl_int>(std::max(dynamics.energy_interval, 1)),
+              static_cast<cl_int>(dynamics.stable_checks), static_cast<cl_int>(by_decisions),
+              static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
+              static_cast<cl_float>(dynamics.decision_tolerance * std::max(1, L.n_rows)),
+              energy_trace_, outcome_);
+    }
   }
+
+ public:
+  // Whether the blocked solve loop runs on the device (solve_blocked_resident).
+  bool resident() const { return resident_; }
+  struct ResidentOutcome {
+    int steps = 0;
+    bool converged = false;
+    int stop_parity = 0;
+    std::vector<float> energy_trace;  // the energy at every check
+  };
+  // The whole solve in one launch; then one blocking read (the trace behind the outcome).
+  ResidentOutcome SolveResident() {
+    Launch(resident_loop_, cl::NDRange(1), cl::NDRange(1));
+    ++launches_;
+    std::vector<float> trace(resident_checks_, 0.0f);
+    cl_int outcome[4] = {0, 0, 0, 0};
+    queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(),
+                             trace.data(), nullptr, Record("read energy trace"));
+    queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
+                             Record("read outcome"));
+    ++blocking_reads_;
+    ResidentOutcome result;
+    result.steps = outcome[0];
+    result.converged = outcome[1] != 0;
+    result.stop_parity = outcome[2];
+    trace.resize(std::min<std::size_t>(trace.size(), static_cast<std::size_t>(std::max(outcome[3], 0))));
+    result.energy_trace = std::move(trace);
+    return result;
+  }
+
+ private:
 
   // Buffers and kernels of the kDecisions stop rule; `row_first` indexes u of either layout.
   void SetUpDecisions(const cl::Program& program, std::vector<int> row_first,
@@ -724,6 +794,11 @@ class DeviceNetwork {
   cl::Buffer row_count_, column_slots_, slot_right_, slot_correlation_, slot_bias_, slot_column_,
       network_of_row_, blocks_, row_energy_, V_state_[2], u_state_[2], block_row_;
   cl::Kernel build_blocks_, step_[2], column_sums_blocked_[2];
+  // The solve loop on the device (SolveLoop::kDevice).
+  bool resident_ = false;
+  std::size_t resident_checks_ = 0;
+  cl::Buffer energy_trace_, outcome_;
+  cl::Kernel resident_loop_;
   // kDecisions stop rule.
   std::vector<int> rows_per_network_;
   cl::Buffer row_first_, row_size_, decision_network_, decisions_, changes_;
@@ -864,6 +939,36 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
   Finish(final_V, final_u, device.network(), weights_ms, MillisecondsSince(start), reports);
 }
 
+// Row blocks with the whole loop on the device (SolveLoop::kDevice, solve_blocked_resident):
+// one launch and one read; the report as SolveBlocked's (the same checks at the same steps).
+void SolveBlockedResident(DeviceNetwork& device, const DynamicsOptions& dynamics,
+                          std::vector<SolveReport>* reports) {
+  auto start = Clock::now();
+  device.BuildBlocks();
+  device.Finish();
+  const double weights_ms = MillisecondsSince(start);
+  device.StartSolveProfile();
+  start = Clock::now();
+  const DeviceNetwork::ResidentOutcome outcome = device.SolveResident();
+  SolveReport& report = reports->front();
+  const int interval = std::max(dynamics.energy_interval, 1);
+  std::size_t check = 0;
+  for (int step = 0; step <= outcome.steps && check < outcome.energy_trace.size(); ++step) {
+    if (step % interval != 0 && step != dynamics.max_steps) continue;
+    report.energy_trace.push_back(outcome.energy_trace[check++]);
+    report.energy_trace_iterations.push_back(step);
+  }
+  if (!report.energy_trace.empty()) {
+    report.energy_initial = report.energy_trace.front();
+    report.energy_final = report.energy_trace.back();
+  }
+  report.iterations = outcome.steps;
+  report.converged = outcome.converged;
+  std::vector<float> final_V, final_u;
+  device.ReadBlockedState({outcome.stop_parity}, &final_V, &final_u);
+  Finish(final_V, final_u, device.network(), weights_ms, MillisecondsSince(start), reports);
+}
+
 }  // namespace
 
 SolveReport OpenClEngine::Solve(const MatchingProblem& problem, const EnergyOptions& energy,
@@ -939,6 +1044,8 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
     }
     if (device.storage() == WeightStorage::kCsr) {
       SolveCsr(device, dynamics, &reports);
+    } else if (device.resident()) {
+      SolveBlockedResident(device, dynamics, &reports);
     } else {
       SolveBlocked(device, dynamics, &reports);
     }
@@ -947,6 +1054,9 @@ std::vector<SolveReport> OpenClEngine::SolveBatch(const ProblemBatch& problems,
     for (SolveReport& report : reports) {
       report.kernel_times = kernel_times;  // the batch's, shared
       report.weight_storage = std::string(WeightStorageName(device.storage()));
+      if (device.storage() != WeightStorage::kCsr) {
+        report.solve_loop = device.resident() ? "device" : "host";
+      }
       report.step_bytes = device.StepBytes();
       report.launches = device.launches();
       report.blocking_reads = device.blocking_reads();

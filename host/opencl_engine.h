@@ -18,6 +18,10 @@ namespace hnnstereo::hnn {
 
 /// Work-items per row of the GPU's blocked step (OpenClEngineOptions::BlockStep): one warp.
 inline constexpr int kStepGroup = 32;
+/// SolveLoop::kAuto runs the loop on a 2-core CPU device for steps that read at most this many
+/// bytes (the step-bytes model of SolveReport::step_bytes): the crossover measured there lies
+/// between 1.5 and 2.4 MB (docs/engine.md).
+inline constexpr double kResidentMaxStepBytes = 2.0e6;
 
 /// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
 enum class WeightStorage {
@@ -47,6 +51,15 @@ struct OpenClEngineOptions {
   /// forces the GPU's kernel anywhere (so a CPU test covers it).
   enum class BlockStep { kAuto, kRowPerItem, kRowPerGroup };
   BlockStep block_step = BlockStep::kAuto;
+  /// Row blocks: where the solve loop runs. kHost: a launch per step and a host round trip per
+  /// convergence check (SolveBlocked). kDevice: the whole loop in one launch of one work-item
+  /// (kernel solve_blocked_resident; one network without column uniqueness, else kHost). kAuto:
+  /// kDevice on a CPU device for a single network whose step reads at most
+  /// ResidentMaxStepBytes(its compute units) (the blocks stay in one core's cache, and the
+  /// launches and round trips cost about what the steps do: docs/engine.md), else kHost. Never on a GPU by
+  /// default: one work-item would leave the card idle.
+  enum class SolveLoop { kAuto, kHost, kDevice };
+  SolveLoop solve_loop = SolveLoop::kAuto;
   /// Time every kernel and convergence-check read on the device (a queue with
   /// CL_QUEUE_PROFILING_ENABLE, one event per command): SolveReport::kernel_times, `bench
   /// --profile`. Off by default: events cost host time on every launch.
@@ -88,6 +101,10 @@ class OpenClEngine {
   ocl::Runtime& runtime_;
   OpenClEngineOptions options_;
 };
+
+/// SolveLoop::kAuto's limit on a CPU device of `compute_units` cores: kResidentMaxStepBytes on
+/// two, less on more (the host loop's steps spread over the cores; unlimited on one).
+double ResidentMaxStepBytes(unsigned compute_units);
 
 /// The -D build options that specialise kernels/hopfield.cl for these options.
 std::string KernelBuildOptions(const EnergyOptions& energy, const DynamicsOptions& dynamics);

@@ -40,6 +40,9 @@ struct SolveReport {
   /// "on-the-fly"), the bytes one step reads from memory under that layout's model (weights,
   /// neighbour lists and state; docs/benchmark.md), kernel launches and blocking reads.
   std::string weight_storage;
+  /// OpenCL row blocks: where the solve loop ran ("host": a launch per step and a round trip
+  /// per check; "device": one launch, OpenClEngineOptions::SolveLoop); empty otherwise.
+  std::string solve_loop;
   double step_bytes = 0.0;
   int launches = 0;
   int blocking_reads = 0;

@@ -382,6 +382,50 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
     if (ni > 2) { u_out[base + 2] = next.z; V_out[base + 2] = v.z; }
   }
 }
+
+// Rows i .. i + 3 finished together: the float4 finish_row's arithmetic lane by lane on one
+// float16, so that the activation is one 16-wide tanh instead of four 4-wide ones. On a CPU
+// device the tanh is a chain of dependent vector operations, and that chain, not the blocks,
+// was most of a step once the blocks sit in cache (perf of the 2,000-feature network: 3x the
+// time of the block loop). Padded slots keep their values (V 0), as finish_row leaves them.
+void finish_rows4(const int i, const float* acc, __global const int* row_count,
+                  __global const float* slot_bias, __global const int* slot_column,
+                  __global const float* column_sums, const float two_B, const float two_C,
+                  const float dt, const float inv_tau, const float alpha,
+                  __global const float* V_in, __global const float* u_in, __global float* V_out,
+                  __global float* u_out, __global float* row_energy) {
+  const int base = i * 4;
+  const int4 n4 = vload4(0, row_count + i);
+  const int16 live = (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) <
+                     n4.s0000111122223333;
+  const float16 zero = (float16)(0.0f);
+  const float16 v_raw = vload16(0, V_in + base);
+  const float16 va = select(zero, v_raw, live);
+  const float4 row_sum = (float4)(((va.s0 + va.s1) + va.s2) + va.s3,
+                                  ((va.s4 + va.s5) + va.s6) + va.s7,
+                                  ((va.s8 + va.s9) + va.sa) + va.sb,
+                                  ((va.sc + va.sd) + va.se) + va.sf);
+  float16 sum = vload16(0, acc) - two_B * (row_sum.s0000111122223333 - va);
+  if (two_C != 0.0f) {
+    float cs[16];
+    for (int l = 0; l < 16; ++l) {
+      cs[l] = l % 4 < row_count[i + l / 4] ? column_sums[slot_column[base + l]] : 0.0f;
+    }
+    sum -= two_C * (vload16(0, cs) - va);
+  }
+  const float16 ia = select(zero, vload16(0, slot_bias + base), live);
+  const float16 e = va * (0.5f * sum + ia);
+  row_energy[i] = -(((e.s0 + e.s1) + e.s2) + e.s3);
+  row_energy[i + 1] = -(((e.s4 + e.s5) + e.s6) + e.s7);
+  row_energy[i + 2] = -(((e.s8 + e.s9) + e.sa) + e.sb);
+  row_energy[i + 3] = -(((e.sc + e.sd) + e.se) + e.sf);
+  const float16 u_raw = vload16(0, u_in + base);
+  const float16 ua = select(zero, u_raw, live);
+  const float16 next = ua + dt * (-ua * inv_tau + sum + ia);
+  const float16 v = 0.5f * (1.0f + tanh(next / alpha));
+  vstore16(select(u_raw, next, live), 0, u_out + base);
+  vstore16(select(v_raw, v, live), 0, V_out + base);
+}
 #else
 void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
                 __global const int* slot_column, __global const float* column_sums,
@@ -420,7 +464,7 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
 #endif
 
 // The arguments of both fused step kernels (the host sets them once for either).
-#define STEP_BLOCKED_PARAMS                                                                      \
+#define STEP_NETWORK_PARAMS                                                                      \
   const int n_rows, const int rows_per_item, __global const int* row_count,                      \
       __global const int* feature_neighbour_offsets, __global const int* feature_neighbours,     \
       __global const BLOCK_TYPE* blocks, __global const float2* slot_right,                      \
@@ -428,9 +472,16 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
       const EnergyParams p, __global const float* slot_bias, __global const int* slot_column,    \
       __global const float* column_sums, const float two_B, const float two_C,                   \
       __global const int* network_of_row, __global const int* active, const float dt,           \
-      const float inv_tau, const float alpha, __global const float* V_in,                        \
-      __global const float* u_in, __global float* V_out, __global float* u_out,                  \
-      __global float* row_energy
+      const float inv_tau, const float alpha
+#define STEP_BLOCKED_PARAMS                                                                      \
+  STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in,                   \
+      __global float* V_out, __global float* u_out, __global float* row_energy
+// Their names, to pass them on.
+#define STEP_BLOCKED_ARGS                                                                        \
+  n_rows, rows_per_item, row_count, feature_neighbour_offsets, feature_neighbours, blocks,       \
+      slot_right, slot_correlation, feature_point, p, slot_bias, slot_column, column_sums,       \
+      two_B, two_C, network_of_row, active, dt, inv_tau, alpha, V_in, u_in, V_out, u_out,        \
+      row_energy
 
 // Row i's compatibility input acc[k] = sum over its neighbour blocks t in [first, end) (every
 // stride-th) of block t times V of the neighbour row, k < ROW_PAD. Both step kernels call it: the
@@ -501,10 +552,36 @@ void row_input(const int i, const int ni, const int first, const int end, const 
 
 // One fused Euler step for rows [item * rows_per_item, +rows_per_item): reads V_in and u_in,
 // writes V_out, u_out and the energy term of every row at V_in (E = sum of row_energy, eq. 6.10).
-__kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
-  const int first = get_global_id(0) * rows_per_item;
-  const int last = min(n_rows, first + rows_per_item);
-  for (int i = first; i < last; ++i) {
+// Rows [first, last) of one fused step (both kernels below that run rows on one work-item).
+void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
+  int i = first;
+#if ROW_PAD == 4 && !DISCRETE
+  // Four rows at a time, finished as one float16, where all four belong to active networks.
+  for (; i + 4 <= last; i += 4) {
+    if (active[network_of_row[i]] && active[network_of_row[i + 1]] &&
+        active[network_of_row[i + 2]] && active[network_of_row[i + 3]]) {
+      float acc[16];
+      for (int r = 0; r < 4; ++r) {
+        row_input(i + r, row_count[i + r], feature_neighbour_offsets[i + r],
+                  feature_neighbour_offsets[i + r + 1], 1, row_count, feature_neighbours, blocks,
+                  slot_right, slot_correlation, feature_point, p, V_in, acc + 4 * r);
+      }
+      finish_rows4(i, acc, row_count, slot_bias, slot_column, column_sums, two_B, two_C, dt,
+                   inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
+      continue;
+    }
+    for (int r = i; r < i + 4; ++r) {
+      if (!active[network_of_row[r]]) continue;
+      float acc[ROW_PAD];
+      row_input(r, row_count[r], feature_neighbour_offsets[r], feature_neighbour_offsets[r + 1],
+                1, row_count, feature_neighbours, blocks, slot_right, slot_correlation,
+                feature_point, p, V_in, acc);
+      finish_row(r, row_count[r], acc, slot_bias, slot_column, column_sums, two_B, two_C, dt,
+                 inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
+    }
+  }
+#endif
+  for (; i < last; ++i) {
     const int ni = row_count[i];
     // A frozen (converged) network is not touched: the state buffer it stopped on keeps V_s.
     if (!active[network_of_row[i]]) continue;
@@ -513,6 +590,80 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
               feature_neighbours, blocks, slot_right, slot_correlation, feature_point, p, V_in, acc);
     finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
                V_in, u_in, V_out, u_out, row_energy);
+  }
+}
+
+__kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
+  const int first = get_global_id(0) * rows_per_item;
+  step_rows(first, min(n_rows, first + rows_per_item), STEP_BLOCKED_ARGS);
+}
+
+// The whole blocked solve in one launch of a single work-item (OpenClEngineOptions::SolveLoop::
+// kDevice: small networks on a CPU device). It runs SolveBlocked's host loop itself - the fused
+// step of every row as neuron_step_blocked does it, and at every `interval`-th step (and at
+// max_steps) the energy and the stop rule (host/opencl_engine.cc, CheckConvergence; kDecisions
+// as row_decisions counts) - so the solve costs one launch and one read instead of a launch per
+// step and a host round trip per check. On the 2-core CPU device those cost about as much as the
+// step itself on a 2,000-feature network, whose blocks sit in one core's cache
+// (docs/engine.md). One network (no batch), no column uniqueness (no column sums between
+// steps). State buffers 0 and 1 as the host loop's parities; `decisions` starts at -2.
+// energy_trace[c] = E at check c (E as the sum of row_energy in row order, where segment_sum
+// adds a tree: equal up to float rounding); outcome = (steps, converged, stop parity, checks).
+__kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,
+                                     __global float* V1, __global float* u1,
+                                     __global float* row_energy, __global int* decisions,
+                                     const int max_steps, const int interval,
+                                     const int stable_checks, const int by_decisions,
+                                     const float energy_tolerance,
+                                     const float decision_tolerance,
+                                     __global float* energy_trace, __global int* outcome) {
+  if (get_global_id(0) != 0) return;
+  int parity = 0, stable = 0, checks = 0;
+  float last = 0.0f;
+  for (int step = 0;; ++step) {
+    __global float* V_in = parity ? V1 : V0;
+    __global float* u_in = parity ? u1 : u0;
+    __global float* V_out = parity ? V0 : V1;
+    __global float* u_out = parity ? u0 : u1;
+    step_rows(0, n_rows, STEP_BLOCKED_ARGS);
+    if (step % interval != 0 && step != max_steps) {
+      parity = 1 - parity;
+      continue;
+    }
+    float E = 0.0f;
+    int changes = 0;
+    for (int i = 0; i < n_rows; ++i) {
+      E += row_energy[i];
+      // The row's decision at u_in, as row_decisions.
+      const int ni = row_count[i];
+      int best = -1;
+      float best_u = 0.0f;
+      for (int k = 0; k < ni; ++k) {
+        const float uk = u_in[i * ROW_PAD + k];
+        if (best < 0 || uk > best_u) {
+          best = k;
+          best_u = uk;
+        }
+      }
+      const int decision = best >= 0 && best_u > 0.0f ? best : -1;
+      changes += decision != decisions[i];
+      decisions[i] = decision;
+    }
+    energy_trace[checks++] = E;
+    if (step > 0) {
+      const int settled = by_decisions ? (float)changes <= decision_tolerance
+                                       : fabs(E - last) <= energy_tolerance;
+      stable = settled ? stable + 1 : 0;
+    }
+    last = E;
+    if (stable >= stable_checks || step >= max_steps) {
+      outcome[0] = step;
+      outcome[1] = stable >= stable_checks;
+      outcome[2] = parity;
+      outcome[3] = checks;
+      return;
+    }
+    parity = 1 - parity;
   }
 }
 

@@ -42,7 +42,7 @@ int Run(int argc, char** argv) {
   std::vector<std::string> files;
   std::vector<std::string> storages = {"csr", "blocked-float", "blocked-half", "on-the-fly"};
   std::string device, out;
-  std::string block_step = "auto";
+  std::string block_step = "auto", solve_loop = "auto";
   int repeats = 5, warmup = 1, rows_per_item = 0;
   double time_step = 0.0;
   bool cpu = false, profile = false;
@@ -65,6 +65,10 @@ int Run(int argc, char** argv) {
                  "Row blocks' step: auto (a work-group per row on a GPU), item (runs of rows per "
                  "work-item) or group (a work-group of lanes per row)")
       ->check(CLI::IsMember({"auto", "item", "group"}));
+  app.add_option("--solve-loop", solve_loop,
+                 "Row blocks' solve loop: auto (on the device for one small network on a CPU "
+                 "device), host (a launch per step) or device (one launch of one work-item)")
+      ->check(CLI::IsMember({"auto", "host", "device"}));
   app.add_option("--out", out, "JSON output");
   CLI11_PARSE(app, argc, argv);
 
@@ -83,6 +87,7 @@ int Run(int argc, char** argv) {
   nlohmann::json json;
   json["device"] = runtime->description();
   json["block_step"] = block_step;
+  json["solve_loop"] = solve_loop;
   const perf::ReadBandwidth bandwidth = perf::MeasureDeviceReadBandwidth(*runtime);
   json["device_read_gbps"] = bandwidth.gbps;
   json["device_read_method"] = bandwidth.method;
@@ -146,6 +151,7 @@ int Run(int argc, char** argv) {
                             {"launches", last.launches},
                             {"blocking_reads", last.blocking_reads}};
       if (on_device) run["roofline_fraction"] = roof;
+      if (!last.solve_loop.empty()) run["solve_loop"] = last.solve_loop;
       if (!last.kernel_times.empty()) {
         nlohmann::json commands = nlohmann::json::array();
         for (const hnn::KernelTime& t : last.kernel_times) {
@@ -172,6 +178,9 @@ int Run(int argc, char** argv) {
       options.block_step = block_step == "item"    ? hnn::OpenClEngineOptions::BlockStep::kRowPerItem
                            : block_step == "group" ? hnn::OpenClEngineOptions::BlockStep::kRowPerGroup
                                                    : hnn::OpenClEngineOptions::BlockStep::kAuto;
+      options.solve_loop = solve_loop == "host"     ? hnn::OpenClEngineOptions::SolveLoop::kHost
+                           : solve_loop == "device" ? hnn::OpenClEngineOptions::SolveLoop::kDevice
+                                                    : hnn::OpenClEngineOptions::SolveLoop::kAuto;
       hnn::OpenClEngine engine(*runtime, options);
       std::vector<hnn::SolveReport> reports;
       try {
@@ -188,6 +197,7 @@ int Run(int argc, char** argv) {
       }
       std::string label(hnn::WeightStorageName(storage));
       if (storage == hnn::WeightStorage::kAuto) label += "=" + reports.back().weight_storage;
+      if (reports.back().solve_loop == "device") label += " (loop on device)";
       record(label, std::move(reports));
     }
   }

@@ -248,6 +248,7 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       if (!thesis) run["step_bytes"] = step_bytes;
       if (!last.solve.weight_storage.empty()) {
         run["weight_storage"] = last.solve.weight_storage;
+        if (!last.solve.solve_loop.empty()) run["solve_loop"] = last.solve.solve_loop;
         run["launches"] = last.solve.launches;
         run["blocking_reads"] = last.solve.blocking_reads;
         run["launches_per_step"] = steps > 0 ? last.solve.launches / steps : 0.0;

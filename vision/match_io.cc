@@ -72,6 +72,8 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
   json["weight_storage"] = report.solve.weight_storage.empty()
                                ? std::string(hnn::WeightStorageName(options.opencl.storage))
                                : report.solve.weight_storage;
+  // Where the opencl row-block solve looped: "host" or "device" (one launch; docs/engine.md).
+  if (!report.solve.solve_loop.empty()) json["solve_loop"] = report.solve.solve_loop;
   json["min_confidence"] = options.min_confidence;
   const auto& c = options.confidence;
   json["confidence_options"] = {{"bias", c.bias},

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+#include <set>
 
 #include "host/cpu_engines.h"
 #include "host/decode.h"
@@ -334,6 +335,102 @@ TEST_P(OpenClStorageTest, BatchEqualsIndependentSolves) {
   }
 }
 
+// The solve loop on the device (one launch of solve_blocked_resident, SolveLoop::kDevice)
+// against the host loop (a launch per step, a round trip per check) on feature-vs-disparity
+// networks, the kind it runs: the same steps, checks, state and matches for both stop rules and
+// both activations; 4-slot rows (finished four rows at a time), 3-slot and wider rows; row
+// counts that are no multiple of four; and runs cut by the step limit.
+TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
+  const WeightStorage storage = GetParam();
+  if (storage == WeightStorage::kCsr) GTEST_SKIP() << "row blocks and on the fly only";
+  OpenClEngineOptions host{storage, 0}, device{storage, 0};
+  host.solve_loop = OpenClEngineOptions::SolveLoop::kHost;
+  device.solve_loop = OpenClEngineOptions::SolveLoop::kDevice;
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  int cases = 0;
+  for (std::uint64_t seed : {331u, 332u}) {
+    for (int max_per_row : {4, 3, 0}) {
+      const MatchingProblem problem =
+          testing::SyntheticDisparityProblem(seed, 149 + static_cast<int>(seed % 2), 50, max_per_row);
+      for (const auto rule : {DynamicsOptions::StopRule::kEnergy, DynamicsOptions::StopRule::kDecisions}) {
+        for (const Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
+          for (const int max_steps : {DynamicsOptions{}.max_steps, 7}) {
+            DynamicsOptions dynamics;
+            dynamics.stop_rule = rule;
+            dynamics.activation = activation;
+            dynamics.max_steps = max_steps;
+            if (rule == DynamicsOptions::StopRule::kDecisions) dynamics.energy_interval = 2;
+            const SolveReport a = OpenClEngine(*runtime_, host).Solve(problem, energy, dynamics);
+            const SolveReport b = OpenClEngine(*runtime_, device).Solve(problem, energy, dynamics);
+            const std::string what =
+                "seed " + std::to_string(seed) + " per-row " + std::to_string(max_per_row) +
+                (rule == DynamicsOptions::StopRule::kEnergy ? " energy" : " decisions") +
+                (activation == Activation::kContinuous ? " continuous" : " discrete") +
+                " max_steps " + std::to_string(max_steps);
+            EXPECT_EQ(a.solve_loop, "host") << what;
+            EXPECT_EQ(b.solve_loop, "device") << what;
+            EXPECT_EQ(a.iterations, b.iterations) << what;
+            EXPECT_EQ(a.converged, b.converged) << what;
+            EXPECT_EQ(a.energy_trace_iterations, b.energy_trace_iterations) << what;
+            ASSERT_EQ(a.energy_trace.size(), b.energy_trace.size()) << what;
+            for (std::size_t c = 0; c < a.energy_trace.size(); ++c) {
+              // The device adds the row energies in row order, segment_sum as a tree.
+              EXPECT_NEAR(a.energy_trace[c], b.energy_trace[c], 1e-5 * EnergyScale(a)) << what;
+            }
+            EXPECT_EQ(a.activation, b.activation) << what;  // the same step code, bit for bit
+            EXPECT_EQ(a.potential, b.potential) << what;
+            EXPECT_EQ(MatchedNeurons(problem, a), MatchedNeurons(problem, b)) << what;
+            // One launch for the loop (and one for the block build), one blocking read for its
+            // outcome, then the state.
+            EXPECT_LE(b.launches, 2) << what;
+            EXPECT_LT(b.launches, a.launches) << what;
+            EXPECT_LE(b.blocking_reads, 5) << what;
+            if (max_steps == 7) EXPECT_FALSE(b.converged) << what;
+            ++cases;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(cases, 48);
+}
+
+// Networks solved together in one host loop, where a frozen network's rows share groups of four
+// with a live one (the finish of four rows falls back to one row at a time), against each
+// solved alone (one network: the loop on the device).
+TEST_P(OpenClStorageTest, DisparityBatchEqualsIndependentDeviceLoops) {
+  const WeightStorage storage = GetParam();
+  if (storage == WeightStorage::kCsr) GTEST_SKIP() << "row blocks and on the fly only";
+  ProblemBatch batch;
+  batch.push_back(testing::SyntheticDisparityProblem(341, 13, 0, 4));
+  batch.push_back(testing::SyntheticDisparityProblem(342, 61, 30, 4));
+  batch.push_back(testing::SyntheticDisparityProblem(343, 149, 120, 4));
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  OpenClEngineOptions options{storage, 0};
+  options.solve_loop = OpenClEngineOptions::SolveLoop::kDevice;  // a batch still loops on the host
+  OpenClEngine engine(*runtime_, options);
+  DynamicsOptions dynamics;  // the energy rule
+  const std::vector<SolveReport> together = engine.SolveBatch(batch, energy, dynamics);
+  ASSERT_EQ(together.size(), batch.size());
+  std::set<int> steps;
+  for (std::size_t p = 0; p < batch.size(); ++p) {
+    const SolveReport alone = engine.Solve(batch[p], energy, dynamics);
+    EXPECT_EQ(together[p].solve_loop, "host");
+    EXPECT_EQ(alone.solve_loop, "device");
+    EXPECT_EQ(together[p].iterations, alone.iterations) << "network " << p;
+    EXPECT_EQ(MatchedNeurons(batch[p], together[p]), MatchedNeurons(batch[p], alone));
+    // A row finished alone (float4) or in a group of four (float16) may round differently.
+    ASSERT_EQ(together[p].activation.size(), alone.activation.size());
+    for (std::size_t a = 0; a < alone.activation.size(); ++a) {
+      EXPECT_NEAR(together[p].activation[a], alone.activation[a], 1e-5) << "network " << p;
+    }
+    steps.insert(alone.iterations);
+  }
+  EXPECT_GT(steps.size(), 1u) << "the networks should freeze at different steps";
+}
+
 INSTANTIATE_TEST_SUITE_P(Storages, OpenClStorageTest,
                          ::testing::Values(WeightStorage::kCsr, WeightStorage::kBlockedFloat,
                                            WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly),
@@ -342,6 +439,43 @@ INSTANTIATE_TEST_SUITE_P(Storages, OpenClStorageTest,
                            std::replace(name.begin(), name.end(), '-', '_');
                            return name;
                          });
+
+// SolveLoop::kAuto: the loop goes to a CPU device for one small feature-vs-disparity network;
+// batches, feature-vs-feature networks (column sums between steps), large networks and kHost
+// keep it on the host.
+TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
+  if (runtime_->is_gpu()) GTEST_SKIP() << "a CPU device's rule";
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  const MatchingProblem small = testing::SyntheticDisparityProblem(351, 150, 50, 4);
+  OpenClEngine automatic(*runtime_, {WeightStorage::kBlockedHalf, 0});
+  const SolveReport alone = automatic.Solve(small, energy, DynamicsOptions{});
+  EXPECT_EQ(alone.solve_loop, "device");
+  EXPECT_LE(alone.step_bytes, ResidentMaxStepBytes(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>()));
+  EXPECT_EQ(automatic.Solve(testing::SyntheticProblem(351, 150, 50, false, 4), energy, DynamicsOptions{})
+                .solve_loop,
+            "host");
+  for (const SolveReport& r : automatic.SolveBatch({small, small}, energy, DynamicsOptions{})) {
+    EXPECT_EQ(r.solve_loop, "host");
+  }
+  OpenClEngineOptions host{WeightStorage::kBlockedHalf, 0};
+  host.solve_loop = OpenClEngineOptions::SolveLoop::kHost;
+  EXPECT_EQ(OpenClEngine(*runtime_, host).Solve(small, energy, DynamicsOptions{}).solve_loop, "host");
+  // A network whose step reads more than the limit (dense rows of many slots) stays on the host.
+  EnergyOptions wide = energy;
+  wide.support_radius_px = 60.0;
+  const MatchingProblem large = testing::SyntheticDisparityProblem(352, 3000, 0, 4);
+  const SolveReport big = automatic.Solve(large, wide, DynamicsOptions{});
+  ASSERT_GT(big.step_bytes, 2.0 * kResidentMaxStepBytes);
+  EXPECT_EQ(big.solve_loop, "host");
+}
+
+TEST(ResidentLoopLimit, ShrinksWithTheCores) {
+  EXPECT_TRUE(std::isinf(ResidentMaxStepBytes(1)));
+  EXPECT_DOUBLE_EQ(ResidentMaxStepBytes(2), kResidentMaxStepBytes);
+  EXPECT_LT(ResidentMaxStepBytes(16), ResidentMaxStepBytes(4));
+  EXPECT_GT(ResidentMaxStepBytes(16), 0.5 * kResidentMaxStepBytes);
+}
 
 TEST(WeightStorageNames, RoundTrip) {
   for (WeightStorage s : {WeightStorage::kAuto, WeightStorage::kCsr, WeightStorage::kBlockedFloat,

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -54,6 +55,40 @@ inline MatchingProblem SyntheticProblem(std::uint64_t seed, int n_left, int n_di
       ++kept;
     }
   }
+  return problem;
+}
+
+/// The same scene as a feature-vs-disparity network (hnn-default's kind: columns are integer
+/// disparity levels 0..40, uniqueness per left feature only): each candidate takes the level of
+/// its disparity; of two candidates of a row on one level the better correlated stays.
+inline MatchingProblem SyntheticDisparityProblem(std::uint64_t seed, int n_left, int n_distractors,
+                                                 int max_per_row = 0) {
+  const MatchingProblem features = SyntheticProblem(seed, n_left, n_distractors, false, max_per_row);
+  MatchingProblem problem;
+  problem.kind = NetworkKind::kFeatureVsDisparity;
+  problem.left_points = features.left_points;
+  problem.n_columns = 41;
+  std::vector<Candidate> row;
+  auto flush = [&] {
+    std::sort(row.begin(), row.end(),
+              [](const Candidate& a, const Candidate& b) { return a.column < b.column; });
+    for (const Candidate& c : row) problem.candidates.push_back(c);
+    row.clear();
+  };
+  for (Candidate c : features.candidates) {
+    if (!row.empty() && row.front().left != c.left) flush();
+    const Eigen::Vector2f& l = problem.left_points[static_cast<std::size_t>(c.left)];
+    c.column = std::clamp(static_cast<int>(std::lround(l.x() - c.right_point.x())), 0, 40);
+    c.right_point = Eigen::Vector2f(l.x() - static_cast<float>(c.column), l.y());
+    auto same = std::find_if(row.begin(), row.end(),
+                             [&](const Candidate& o) { return o.column == c.column; });
+    if (same == row.end()) {
+      row.push_back(c);
+    } else if (c.correlation > same->correlation) {
+      *same = c;
+    }
+  }
+  flush();
   return problem;
 }
 
