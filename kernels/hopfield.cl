@@ -427,10 +427,25 @@ void finish_rows4(const int i, const float* acc, __global const int* row_count,
   vstore16(select(v_raw, v, live), 0, V_out + base);
 }
 #elif !DISCRETE
-// Wider rows (8, 12, ... slots: the pick cell's feature network), four slots a float4 as above:
-// one vector tanh per four slots instead of a scalar one per slot (perf of a pick network,
-// 8-slot rows: the scalar finish was half of the step). The energy terms are added in slot
-// order, as the scalar loop adds them.
+// Wider rows (8, 12, ... slots: the pick cell's feature network) in chunks of FINISH_W slots
+// (8 where the row pad allows, else 4), each as one vector: one vector tanh per chunk instead
+// of a scalar one per slot (perf of a pick network, 8-slot rows: the scalar finish was half of
+// the step). The energy terms are added in slot order, as the scalar loop adds them.
+#if ROW_PAD % 8 == 0
+#define FINISH_W 8
+#define floatW float8
+#define intW int8
+#define vloadW vload8
+#define vstoreW vstore8
+#define FINISH_LANES (int8)(0, 1, 2, 3, 4, 5, 6, 7)
+#else
+#define FINISH_W 4
+#define floatW float4
+#define intW int4
+#define vloadW vload4
+#define vstoreW vstore4
+#define FINISH_LANES (int4)(0, 1, 2, 3)
+#endif
 void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
                 __global const int* slot_column, __global const float* column_sums,
                 const float two_B, const float two_C, const float dt, const float inv_tau,
@@ -439,32 +454,33 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
   const int base = i * ROW_PAD;
   float row_sum = 0.0f;
   for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
-  const float4 zero = (float4)(0.0f);
+  const floatW zero = (floatW)(0.0f);
   float energy = 0.0f;
-  for (int c = 0; c < ROW_CHUNKS && 4 * c < ni; ++c) {
-    const int k0 = base + 4 * c;
-    const int live_slots = min(4, ni - 4 * c);
-    const int4 live = (int4)(0, 1, 2, 3) < (int4)(live_slots);
-    const float4 va = select(zero, vload4(0, V_in + k0), live);
-    float4 sum = vload4(c, acc) - two_B * (row_sum - va);
+  for (int c = 0; c < ROW_PAD / FINISH_W && FINISH_W * c < ni; ++c) {
+    const int k0 = base + FINISH_W * c;
+    const int live_slots = min(FINISH_W, ni - FINISH_W * c);
+    const intW live = FINISH_LANES < (intW)(live_slots);
+    const floatW va = select(zero, vloadW(0, V_in + k0), live);
+    floatW sum = vloadW(c, acc) - two_B * (row_sum - va);
     if (two_C != 0.0f) {
-      float cs[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-      for (int l = 0; l < live_slots; ++l) cs[l] = column_sums[slot_column[k0 + l]];
-      sum -= two_C * (vload4(0, cs) - va);
+      float cs[FINISH_W];
+      for (int l = 0; l < FINISH_W; ++l) cs[l] = l < live_slots ? column_sums[slot_column[k0 + l]] : 0.0f;
+      sum -= two_C * (vloadW(0, cs) - va);
     }
-    const float4 ia = select(zero, vload4(0, slot_bias + k0), live);
-    const float4 e = va * (0.5f * sum + ia);
-    energy = (((energy - e.x) - e.y) - e.z) - e.w;
-    const float4 ua = select(zero, vload4(0, u_in + k0), live);
-    const float4 next = ua + dt * (-ua * inv_tau + sum + ia);
-    const float4 v = 0.5f * (1.0f + tanh(next / alpha));
-    if (live_slots == 4) {
-      vstore4(next, 0, u_out + k0);
-      vstore4(v, 0, V_out + k0);
+    const floatW ia = select(zero, vloadW(0, slot_bias + k0), live);
+    float e[FINISH_W];
+    vstoreW(va * (0.5f * sum + ia), 0, e);
+    for (int l = 0; l < FINISH_W; ++l) energy -= e[l];
+    const floatW ua = select(zero, vloadW(0, u_in + k0), live);
+    const floatW next = ua + dt * (-ua * inv_tau + sum + ia);
+    const floatW v = 0.5f * (1.0f + tanh(next / alpha));
+    if (live_slots == FINISH_W) {
+      vstoreW(next, 0, u_out + k0);
+      vstoreW(v, 0, V_out + k0);
     } else {
-      float next_slots[4], v_slots[4];
-      vstore4(next, 0, next_slots);
-      vstore4(v, 0, v_slots);
+      float next_slots[FINISH_W], v_slots[FINISH_W];
+      vstoreW(next, 0, next_slots);
+      vstoreW(v, 0, v_slots);
       for (int l = 0; l < live_slots; ++l) {
         u_out[k0 + l] = next_slots[l];
         V_out[k0 + l] = v_slots[l];
