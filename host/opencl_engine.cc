@@ -993,7 +993,13 @@ double OpenClEngine::WarmUp(const EnergyOptions& energy, const DynamicsOptions& 
   }
   DynamicsOptions short_run = dynamics;
   short_run.max_steps = std::min(dynamics.max_steps, dynamics.energy_interval);
-  Solve(problem, energy, short_run);
+  // Both solve loops (the real network may take either under SolveLoop::kAuto): the host
+  // loop's kernels and the one-launch loop's.
+  for (const auto loop : {OpenClEngineOptions::SolveLoop::kHost, OpenClEngineOptions::SolveLoop::kDevice}) {
+    OpenClEngineOptions options = options_;
+    options.solve_loop = loop;
+    OpenClEngine(runtime_, options).Solve(problem, energy, short_run);
+  }
   return MillisecondsSince(start);
 }
 
