@@ -613,9 +613,9 @@ void row_input(const int i, const int ni, const int first, const int end, const 
 #endif
 }
 
-// One fused Euler step for rows [item * rows_per_item, +rows_per_item): reads V_in and u_in,
-// writes V_out, u_out and the energy term of every row at V_in (E = sum of row_energy, eq. 6.10).
-// Rows [first, last) of one fused step (both kernels below that run rows on one work-item).
+// Rows [first, last) of one fused Euler step (the two kernels below that run rows on one
+// work-item): reads V_in and u_in, writes V_out, u_out and the energy term of every row at V_in
+// (E = sum of row_energy, eq. 6.10).
 void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
   int i = first;
 #if ROW_PAD == 4 && !DISCRETE
@@ -656,6 +656,7 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
   }
 }
 
+// One fused Euler step for rows [item * rows_per_item, +rows_per_item).
 __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
   const int first = get_global_id(0) * rows_per_item;
   step_rows(first, min(n_rows, first + rows_per_item), STEP_BLOCKED_ARGS);
