@@ -26,12 +26,17 @@ With `--side-features` it measures a confidence feature aimed at those errors: a
 seen in the decoded matches (the median disparities of the neighbours within 8 px on the two
 sides of the pixel's gradient line differ by 2 px or more), whether the match took the nearer
 side's disparity while the pixel's own grey level looks like the farther side (a pixel beside an
-occluding contour that the contour dragged along). Scored leave-one-pair-out as `eval` scores:
-error over the kept non-occluded matches at 50 / 75 % of the left Canny pixels with ground truth.
+occluding contour that the contour dragged along). `--sgbm-features`: StereoSGBM's validity and
+agreement at uniqueness 10 and 60 (a second matcher's opinion). `--vertex-features`: the ZNCC
+parabola's vertex offset and sharpness at the match (an integer disparity whose truth may lie a
+pixel away). Each is scored leave-one-pair-out as `eval` scores: error over the kept
+non-occluded matches at 25 / 50 / 75 % of the left Canny pixels with ground truth.
 
     python3 scripts/fit_confidence.py --cache /tmp/fc
     python3 scripts/fit_confidence.py --cache /tmp/fc_nolr --match-args=--no-lr-check
-    python3 scripts/confident_errors.py --cache /tmp/fc --no-lr-cache /tmp/fc_nolr --side-features
+    build/hnnstereo eval --dataset ../shared/datasets --out /tmp/e.json --presets hnn-default
+    python3 scripts/confident_errors.py --cache /tmp/fc --no-lr-cache /tmp/fc_nolr --side-features \
+        --sgbm-features --vertex-features --eval-json /tmp/e.json
 Needs numpy, Pillow and cv2 (python3-opencv).
 """
 import argparse
@@ -276,52 +281,102 @@ def side_features(grey, xl, yl, disparity, radius=8, offset=2.0):
     return out
 
 
-def side_feature_table(pairs, cache):
+def density_feature_table(pairs, cache, title, extra, eval_json=""):
+    """A candidate confidence feature scored as `eval` scores the ranking: fitted
+    leave-one-pair-out with and without the columns `extra(name, pair, rows, col, xl, yl,
+    disparity)` returns, error % (more than 1 px off the ground truth) of the kept non-occluded
+    matches at 25 / 50 / 75 % of the left Canny (50/150) pixels with ground truth: `eval`'s own
+    count (`n_edges_with_truth`, which leaves out the detector's border) from `eval_json`, else
+    every Canny pixel with ground truth."""
     data = {False: {}, True: {}}
     edges_n = {}
-    for name, (directory, left_path, _, gt, _) in pairs.items():
+    counted = {}
+    if eval_json:
+        with open(eval_json) as f:
+            counted = {p["name"]: p["n_edges_with_truth"] for p in json.load(f)["pairs"]}
+    for name, pair in pairs.items():
+        directory, left_path, _, gt, _ = pair
         rows, col = read_report(cache, name)
         xl = np.round(rows[:, col["xl"]]).astype(int)
         yl = np.round(rows[:, col["yl"]]).astype(int)
         disparity = rows[:, col["xl"]] - rows[:, col["xr"]]
-        grey = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE)
-        side = side_features(grey.astype(np.float32), xl, yl, disparity)
         truth = gt[yl, xl]
         known = np.isfinite(truth)
-        correct = (np.abs(disparity - np.round(truth)) <= 1.0)[known].astype(np.float64)
+        correct = (np.abs(disparity - truth) <= 1.0)[known].astype(np.float64)
         seen = visible(directory, gt)[yl, xl][known]
         X = fc.feature_columns(rows[known], col, fc.FEATURES)
+        more = extra(name, pair, rows, col, xl, yl, disparity)[known]
         data[False][name] = (X, correct, seen)
-        data[True][name] = (np.hstack([X, side[known]]), correct, seen)
-        edges_n[name] = int(np.sum((cv2.Canny(grey, 50, 150) > 0) & np.isfinite(gt)))
-    print("\nThe depth-edge side feature: error % of the kept non-occluded matches at 50 / 75 % of "
-          "the left Canny pixels with ground truth (leave-one-pair-out):\n")
-    print("| pair | without: 50 / 75 % | with: 50 / 75 % |")
+        data[True][name] = (np.hstack([X, more]), correct, seen)
+        grey = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE)
+        edges_n[name] = counted.get(name, int(np.sum((cv2.Canny(grey, 50, 150) > 0) &
+                                                     np.isfinite(gt))))
+    print(f"\n{title}: error % of the kept non-occluded matches at 25 / 50 / 75 % of the left "
+          "Canny pixels with ground truth (leave-one-pair-out; pooled over the pairs that reach "
+          "the density):\n")
+    print("| pair | without: 25 / 50 / 75 % | with: 25 / 50 / 75 % |")
     print("|---|---|---|")
-    pooled = {False: np.zeros((2, 2)), True: np.zeros((2, 2))}
+    densities = (0.25, 0.5, 0.75)
+    pooled = {False: np.zeros((3, 2)), True: np.zeros((3, 2))}
     cells = {name: [] for name in pairs}
-    for with_side in (False, True):
+    for with_extra in (False, True):
         for held_out in pairs:
             train = [n for n in pairs if n != held_out]
-            w = fc.fit_logistic(fc.design(np.vstack([data[with_side][n][0] for n in train]), 1e4),
-                                np.concatenate([data[with_side][n][1] for n in train]))
-            X, y, seen = data[with_side][held_out]
+            w = fc.fit_logistic(fc.design(np.vstack([data[with_extra][n][0] for n in train]), 1e4),
+                                np.concatenate([data[with_extra][n][1] for n in train]))
+            X, y, seen = data[with_extra][held_out]
             order = np.argsort(-fc.sigmoid(fc.design(X, 1e4) @ w), kind="stable")
             figures = []
-            for row, density in enumerate((0.5, 0.75)):
+            for row, density in enumerate(densities):
                 k = int(density * edges_n[held_out])
                 if k > len(y):
                     figures.append("n/a")
                     continue
                 kept = order[:k][seen[order[:k]]]
                 wrong = float(np.sum(1.0 - y[kept]))
-                pooled[with_side][row] += (wrong, len(kept))
+                pooled[with_extra][row] += (wrong, len(kept))
                 figures.append(f"{100 * wrong / max(len(kept), 1):.2f}")
             cells[held_out].append(" / ".join(figures))
     for name in pairs:
         print(f"| {name} | {cells[name][0]} | {cells[name][1]} |")
     print("| pooled | " + " | ".join(" / ".join(f"{100 * w / max(k, 1):.2f}" for w, k in pooled[s])
                                    for s in (False, True)) + " |")
+
+
+def side_columns(name, pair, rows, col, xl, yl, disparity):
+    grey = cv2.imread(pair[1], cv2.IMREAD_GRAYSCALE)
+    return side_features(grey.astype(np.float32), xl, yl, disparity)
+
+
+def sgbm_columns(name, pair, rows, col, xl, yl, disparity):
+    """StereoSGBM (as `eval` runs it) at uniqueness 10 and 60: valid here, and within 1 px of
+    the match's disparity."""
+    _, left_path, right_path, _, max_disparity = pair
+    out = []
+    for uniqueness in (10, 60):
+        d = fc.sgbm_agreement(left_path, right_path, max_disparity, uniqueness)[yl, xl]
+        valid = np.isfinite(d)
+        out += [valid, valid & (np.abs(np.where(valid, d, 0.0) - disparity) <= 1.0)]
+    return np.stack(out, axis=1).astype(np.float64)
+
+
+def vertex_columns(name, pair, rows, col, xl, yl, disparity):
+    """The parabola through ZNCC 7 x 7 at the match's disparity d and d +- 1: how far its vertex
+    lies from d (0-1 px) and how sharp it is - does an integer disparity whose truth may lie a
+    pixel away rank lower?"""
+    _, left_path, right_path, _, max_disparity = pair
+    left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    d = np.round(disparity).astype(int)
+    score = np.zeros((len(d), 3))
+    for i in range(len(d)):
+        profile = zncc_profile(left, right, xl[i], yl[i], max_disparity, 0, 0, 3)
+        for k, step in enumerate((-1, 0, 1)):
+            score[i, k] = profile[d[i] + step] if 0 <= d[i] + step <= max_disparity else -1.0
+    curvature = score[:, 0] - 2.0 * score[:, 1] + score[:, 2]
+    sharp = curvature < -1e-6
+    offset = np.where(sharp, 0.5 * (score[:, 0] - score[:, 2]) / np.where(sharp, curvature, 1.0), 0.0)
+    return np.stack([np.minimum(np.abs(offset), 1.0), -curvature], axis=1)
 
 
 def main():
@@ -331,6 +386,12 @@ def main():
     parser.add_argument("--no-lr-cache", default="", help="the same with --match-args=--no-lr-check")
     parser.add_argument("--side-features", action="store_true",
                         help="also measure the depth-edge side feature as a confidence input")
+    parser.add_argument("--eval-json", default="",
+                        help="EVAL.json of `eval` on the same pairs: its edge counts as the densities' base")
+    parser.add_argument("--sgbm-features", action="store_true",
+                        help="rank also by StereoSGBM's validity and agreement at uniqueness 10 and 60")
+    parser.add_argument("--vertex-features", action="store_true",
+                        help="rank also by the ZNCC parabola's vertex offset and sharpness")
     parser.add_argument("--share", type=float, default=0.85, help="top share of matches by confidence")
     args = parser.parse_args()
     pairs = {}
@@ -345,7 +406,13 @@ def main():
     if args.no_lr_cache:
         soft_check_table(pairs, args.cache, args.no_lr_cache)
     if args.side_features:
-        side_feature_table(pairs, args.cache)
+        density_feature_table(pairs, args.cache, "The depth-edge side feature", side_columns, args.eval_json)
+    if args.sgbm_features:
+        density_feature_table(pairs, args.cache, "StereoSGBM at uniqueness 10 and 60 (valid, agrees)",
+                              sgbm_columns, args.eval_json)
+    if args.vertex_features:
+        density_feature_table(pairs, args.cache, "The ZNCC parabola's vertex offset and sharpness",
+                              vertex_columns, args.eval_json)
 
 
 if __name__ == "__main__":
