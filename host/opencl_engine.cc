@@ -501,9 +501,9 @@ class DeviceNetwork {
       const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
       resident_loop_ = cl::Kernel(program, "solve_blocked_resident");
       SetArgs(resident_loop_, static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
-              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_,
-              slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
-              two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
+              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_, slot_correlation_,
+              feature_point_, params, slot_bias_, slot_column_, column_sums_, two_B, two_C,
+              network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
               V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_,
               static_cast<cl_int>(dynamics.max_steps),
@@ -530,8 +530,8 @@ class DeviceNetwork {
     ++launches_;
     std::vector<float> trace(resident_checks_, 0.0f);
     cl_int outcome[4] = {0, 0, 0, 0};
-    queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(),
-                             trace.data(), nullptr, Record("read energy trace"));
+    queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(), trace.data(),
+                             nullptr, Record("read energy trace"));
     queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
                              Record("read outcome"));
     ++blocking_reads_;
@@ -539,13 +539,13 @@ class DeviceNetwork {
     result.steps = outcome[0];
     result.converged = outcome[1] != 0;
     result.stop_parity = outcome[2];
-    trace.resize(std::min<std::size_t>(trace.size(), static_cast<std::size_t>(std::max(outcome[3], 0))));
+    trace.resize(
+        std::min<std::size_t>(trace.size(), static_cast<std::size_t>(std::max(outcome[3], 0))));
     result.energy_trace = std::move(trace);
     return result;
   }
 
  private:
-
   // Buffers and kernels of the kDecisions stop rule; `row_first` indexes u of either layout.
   void SetUpDecisions(const cl::Program& program, std::vector<int> row_first,
                       const cl::Buffer* u_csr) {
@@ -869,16 +869,27 @@ void Finish(const std::vector<float>& final_V, const std::vector<float>& final_u
   }
 }
 
+// Runs the weight build to completion (its wall time is returned), then starts the solve's
+// clock and its share of the profile.
+template <typename Build>
+double BuildWeightsThenStartSolve(DeviceNetwork& device, Build build,
+                                  Clock::time_point* solve_start) {
+  const auto start = Clock::now();
+  build();
+  device.Finish();
+  const double weights_ms = MillisecondsSince(start);
+  device.StartSolveProfile();
+  *solve_start = Clock::now();
+  return weights_ms;
+}
+
 // CSR layout: line sums, field and Euler step as three launches a step (the original engine).
 void SolveCsr(DeviceNetwork& device, const DynamicsOptions& dynamics,
               std::vector<SolveReport>* reports) {
   const std::size_t n = reports->size();
-  auto start = Clock::now();
-  device.BuildWeights();
-  device.Finish();
-  const double weights_ms = MillisecondsSince(start);
-  device.StartSolveProfile();
-  start = Clock::now();
+  Clock::time_point start;
+  const double weights_ms = BuildWeightsThenStartSolve(
+      device, [&] { device.BuildWeights(); }, &start);
   std::vector<int> active(n, 1), stable(n, 0);
   std::vector<double> last_energy(n, 0.0);
   std::size_t n_active = n;
@@ -906,12 +917,9 @@ void SolveCsr(DeviceNetwork& device, const DynamicsOptions& dynamics,
 void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
                   std::vector<SolveReport>* reports) {
   const std::size_t n = reports->size();
-  auto start = Clock::now();
-  device.BuildBlocks();
-  device.Finish();
-  const double weights_ms = MillisecondsSince(start);
-  device.StartSolveProfile();
-  start = Clock::now();
+  Clock::time_point start;
+  const double weights_ms = BuildWeightsThenStartSolve(
+      device, [&] { device.BuildBlocks(); }, &start);
   std::vector<int> active(n, 1), stable(n, 0), stop_parity(n, 0);
   std::vector<double> last_energy(n, 0.0);
   std::size_t n_active = n;
@@ -943,12 +951,9 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
 // one launch and one read; the report as SolveBlocked's (the same checks at the same steps).
 void SolveBlockedResident(DeviceNetwork& device, const DynamicsOptions& dynamics,
                           std::vector<SolveReport>* reports) {
-  auto start = Clock::now();
-  device.BuildBlocks();
-  device.Finish();
-  const double weights_ms = MillisecondsSince(start);
-  device.StartSolveProfile();
-  start = Clock::now();
+  Clock::time_point start;
+  const double weights_ms = BuildWeightsThenStartSolve(
+      device, [&] { device.BuildBlocks(); }, &start);
   const DeviceNetwork::ResidentOutcome outcome = device.SolveResident();
   SolveReport& report = reports->front();
   const int interval = std::max(dynamics.energy_interval, 1);
@@ -995,7 +1000,8 @@ double OpenClEngine::WarmUp(const EnergyOptions& energy, const DynamicsOptions& 
   short_run.max_steps = std::min(dynamics.max_steps, dynamics.energy_interval);
   // Both solve loops (the real network may take either under SolveLoop::kAuto): the host
   // loop's kernels and the one-launch loop's.
-  for (const auto loop : {OpenClEngineOptions::SolveLoop::kHost, OpenClEngineOptions::SolveLoop::kDevice}) {
+  for (const auto loop :
+       {OpenClEngineOptions::SolveLoop::kHost, OpenClEngineOptions::SolveLoop::kDevice}) {
     OpenClEngineOptions options = options_;
     options.solve_loop = loop;
     OpenClEngine(runtime_, options).Solve(problem, energy, short_run);

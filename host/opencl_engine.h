@@ -56,8 +56,8 @@ struct OpenClEngineOptions {
   /// (kernel solve_blocked_resident; one network without column uniqueness, else kHost). kAuto:
   /// kDevice on a CPU device for a single network whose step reads at most
   /// ResidentMaxStepBytes(its compute units) (the blocks stay in one core's cache, and the
-  /// launches and round trips cost about what the steps do: docs/engine.md), else kHost. Never on a GPU by
-  /// default: one work-item would leave the card idle.
+  /// launches and round trips cost about what the steps do: docs/engine.md), else kHost. Never on a
+  /// GPU by default: one work-item would leave the card idle.
   enum class SolveLoop { kAuto, kHost, kDevice };
   SolveLoop solve_loop = SolveLoop::kAuto;
   /// Time every kernel and convergence-check read on the device (a queue with

@@ -340,6 +340,13 @@ __kernel void column_sums_blocked(const int n_columns,
   column_sums[k] = sum;
 }
 
+// finish_row's parameters (one signature for its three variants below).
+#define FINISH_ROW_PARAMS                                                                    \
+  const int i, const int ni, const float* acc, __global const float* slot_bias,              \
+      __global const int* slot_column, __global const float* column_sums, const float two_B, \
+      const float two_C, const float dt, const float inv_tau, const float alpha,             \
+      __global const float* V_in, __global const float* u_in, __global float* V_out,         \
+      __global float* u_out, __global float* row_energy
 // The rest of row i's Euler step once `acc` holds its compatibility input sum_b W_ab V_b: the
 // row and column uniqueness terms (eq. 6.11), the bias, the row's energy term at V_in (eq. 6.10)
 // and the step of u and V into the other state buffer.
@@ -348,11 +355,7 @@ __kernel void column_sums_blocked(const int n_columns,
 // costliest part of a step on a CPU device once the blocks sit in cache (perf: the scalar tanh
 // was most of the step on sparse-2000) - is one vector call. Padded slots (k >= ni) are masked
 // to 0 and never written; the sums run in the scalar loop's order.
-void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
-                __global const int* slot_column, __global const float* column_sums,
-                const float two_B, const float two_C, const float dt, const float inv_tau,
-                const float alpha, __global const float* V_in, __global const float* u_in,
-                __global float* V_out, __global float* u_out, __global float* row_energy) {
+void finish_row(FINISH_ROW_PARAMS) {
   const int base = i * 4;
   const int4 live = (int4)(0, 1, 2, 3) < (int4)(ni);
   const float4 zero = (float4)(0.0f);
@@ -396,15 +399,13 @@ void finish_rows4(const int i, const float* acc, __global const int* row_count,
                   __global float* u_out, __global float* row_energy) {
   const int base = i * 4;
   const int4 n4 = vload4(0, row_count + i);
-  const int16 live = (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) <
-                     n4.s0000111122223333;
+  const int16 live = (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) < n4.s0000111122223333;
   const float16 zero = (float16)(0.0f);
   const float16 v_raw = vload16(0, V_in + base);
   const float16 va = select(zero, v_raw, live);
-  const float4 row_sum = (float4)(((va.s0 + va.s1) + va.s2) + va.s3,
-                                  ((va.s4 + va.s5) + va.s6) + va.s7,
-                                  ((va.s8 + va.s9) + va.sa) + va.sb,
-                                  ((va.sc + va.sd) + va.se) + va.sf);
+  const float4 row_sum =
+      (float4)(((va.s0 + va.s1) + va.s2) + va.s3, ((va.s4 + va.s5) + va.s6) + va.s7,
+               ((va.s8 + va.s9) + va.sa) + va.sb, ((va.sc + va.sd) + va.se) + va.sf);
   float16 sum = vload16(0, acc) - two_B * (row_sum.s0000111122223333 - va);
   if (two_C != 0.0f) {
     float cs[16];
@@ -446,11 +447,7 @@ void finish_rows4(const int i, const float* acc, __global const int* row_count,
 #define vstoreW vstore4
 #define FINISH_LANES (int4)(0, 1, 2, 3)
 #endif
-void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
-                __global const int* slot_column, __global const float* column_sums,
-                const float two_B, const float two_C, const float dt, const float inv_tau,
-                const float alpha, __global const float* V_in, __global const float* u_in,
-                __global float* V_out, __global float* u_out, __global float* row_energy) {
+void finish_row(FINISH_ROW_PARAMS) {
   const int base = i * ROW_PAD;
   float row_sum = 0.0f;
   for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
@@ -464,7 +461,8 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
     floatW sum = vloadW(c, acc) - two_B * (row_sum - va);
     if (two_C != 0.0f) {
       float cs[FINISH_W];
-      for (int l = 0; l < FINISH_W; ++l) cs[l] = l < live_slots ? column_sums[slot_column[k0 + l]] : 0.0f;
+      for (int l = 0; l < FINISH_W; ++l)
+        cs[l] = l < live_slots ? column_sums[slot_column[k0 + l]] : 0.0f;
       sum -= two_C * (vloadW(0, cs) - va);
     }
     const floatW ia = select(zero, vloadW(0, slot_bias + k0), live);
@@ -490,11 +488,7 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
   row_energy[i] = energy;
 }
 #else
-void finish_row(const int i, const int ni, const float* acc, __global const float* slot_bias,
-                __global const int* slot_column, __global const float* column_sums,
-                const float two_B, const float two_C, const float dt, const float inv_tau,
-                const float alpha, __global const float* V_in, __global const float* u_in,
-                __global float* V_out, __global float* u_out, __global float* row_energy) {
+void finish_row(FINISH_ROW_PARAMS) {
   const int base = i * ROW_PAD;
   float row_sum = 0.0f;
   for (int k = 0; k < ni; ++k) row_sum += V_in[base + k];
@@ -527,24 +521,23 @@ void finish_row(const int i, const int ni, const float* acc, __global const floa
 #endif
 
 // The arguments of both fused step kernels (the host sets them once for either).
-#define STEP_NETWORK_PARAMS                                                                      \
-  const int n_rows, const int rows_per_item, __global const int* row_count,                      \
-      __global const int* feature_neighbour_offsets, __global const int* feature_neighbours,     \
-      __global const BLOCK_TYPE* blocks, __global const float2* slot_right,                      \
-      __global const float* slot_correlation, __global const float2* feature_point,             \
-      const EnergyParams p, __global const float* slot_bias, __global const int* slot_column,    \
-      __global const float* column_sums, const float two_B, const float two_C,                   \
-      __global const int* network_of_row, __global const int* active, const float dt,           \
+#define STEP_NETWORK_PARAMS                                                                   \
+  const int n_rows, const int rows_per_item, __global const int* row_count,                   \
+      __global const int* feature_neighbour_offsets, __global const int* feature_neighbours,  \
+      __global const BLOCK_TYPE* blocks, __global const float2* slot_right,                   \
+      __global const float* slot_correlation, __global const float2* feature_point,           \
+      const EnergyParams p, __global const float* slot_bias, __global const int* slot_column, \
+      __global const float* column_sums, const float two_B, const float two_C,                \
+      __global const int* network_of_row, __global const int* active, const float dt,         \
       const float inv_tau, const float alpha
-#define STEP_BLOCKED_PARAMS                                                                      \
-  STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in,                   \
+#define STEP_BLOCKED_PARAMS                                                    \
+  STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in, \
       __global float* V_out, __global float* u_out, __global float* row_energy
 // Their names, to pass them on.
-#define STEP_BLOCKED_ARGS                                                                        \
-  n_rows, rows_per_item, row_count, feature_neighbour_offsets, feature_neighbours, blocks,       \
-      slot_right, slot_correlation, feature_point, p, slot_bias, slot_column, column_sums,       \
-      two_B, two_C, network_of_row, active, dt, inv_tau, alpha, V_in, u_in, V_out, u_out,        \
-      row_energy
+#define STEP_BLOCKED_ARGS                                                                         \
+  n_rows, rows_per_item, row_count, feature_neighbour_offsets, feature_neighbours, blocks,        \
+      slot_right, slot_correlation, feature_point, p, slot_bias, slot_column, column_sums, two_B, \
+      two_C, network_of_row, active, dt, inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy
 
 // Row i's compatibility input acc[k] = sum over its neighbour blocks t in [first, end) (every
 // stride-th) of block t times V of the neighbour row, k < ROW_PAD. Both step kernels call it: the
@@ -636,9 +629,9 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
     for (int r = i; r < i + 4; ++r) {
       if (!active[network_of_row[r]]) continue;
       float acc[ROW_PAD];
-      row_input(r, row_count[r], feature_neighbour_offsets[r], feature_neighbour_offsets[r + 1],
-                1, row_count, feature_neighbours, blocks, slot_right, slot_correlation,
-                feature_point, p, V_in, acc);
+      row_input(r, row_count[r], feature_neighbour_offsets[r], feature_neighbour_offsets[r + 1], 1,
+                row_count, feature_neighbours, blocks, slot_right, slot_correlation, feature_point,
+                p, V_in, acc);
       finish_row(r, row_count[r], acc, slot_bias, slot_column, column_sums, two_B, two_C, dt,
                  inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
     }
@@ -678,8 +671,7 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
                                      __global float* row_energy, __global int* decisions,
                                      const int max_steps, const int interval,
                                      const int stable_checks, const int by_decisions,
-                                     const float energy_tolerance,
-                                     const float decision_tolerance,
+                                     const float energy_tolerance, const float decision_tolerance,
                                      __global float* energy_trace, __global int* outcome) {
   if (get_global_id(0) != 0) return;
   int parity = 0, stable = 0, checks = 0;
@@ -715,8 +707,8 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
     }
     energy_trace[checks++] = E;
     if (step > 0) {
-      const int settled = by_decisions ? (float)changes <= decision_tolerance
-                                       : fabs(E - last) <= energy_tolerance;
+      const int settled =
+          by_decisions ? (float)changes <= decision_tolerance : fabs(E - last) <= energy_tolerance;
       stable = settled ? stable + 1 : 0;
     }
     last = E;

@@ -351,9 +351,10 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
   int cases = 0;
   for (std::uint64_t seed : {331u, 332u}) {
     for (int max_per_row : {4, 3, 0}) {
-      const MatchingProblem problem =
-          testing::SyntheticDisparityProblem(seed, 149 + static_cast<int>(seed % 2), 50, max_per_row);
-      for (const auto rule : {DynamicsOptions::StopRule::kEnergy, DynamicsOptions::StopRule::kDecisions}) {
+      const MatchingProblem problem = testing::SyntheticDisparityProblem(
+          seed, 149 + static_cast<int>(seed % 2), 50, max_per_row);
+      for (const auto rule :
+           {DynamicsOptions::StopRule::kEnergy, DynamicsOptions::StopRule::kDecisions}) {
         for (const Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
           for (const int max_steps : {DynamicsOptions{}.max_steps, 7}) {
             DynamicsOptions dynamics;
@@ -451,16 +452,19 @@ TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   OpenClEngine automatic(*runtime_, {WeightStorage::kBlockedHalf, 0});
   const SolveReport alone = automatic.Solve(small, energy, DynamicsOptions{});
   EXPECT_EQ(alone.solve_loop, "device");
-  EXPECT_LE(alone.step_bytes, ResidentMaxStepBytes(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>()));
-  EXPECT_EQ(automatic.Solve(testing::SyntheticProblem(351, 150, 50, false, 4), energy, DynamicsOptions{})
-                .solve_loop,
-            "host");
+  EXPECT_LE(alone.step_bytes,
+            ResidentMaxStepBytes(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>()));
+  EXPECT_EQ(
+      automatic.Solve(testing::SyntheticProblem(351, 150, 50, false, 4), energy, DynamicsOptions{})
+          .solve_loop,
+      "host");
   for (const SolveReport& r : automatic.SolveBatch({small, small}, energy, DynamicsOptions{})) {
     EXPECT_EQ(r.solve_loop, "host");
   }
   OpenClEngineOptions host{WeightStorage::kBlockedHalf, 0};
   host.solve_loop = OpenClEngineOptions::SolveLoop::kHost;
-  EXPECT_EQ(OpenClEngine(*runtime_, host).Solve(small, energy, DynamicsOptions{}).solve_loop, "host");
+  EXPECT_EQ(OpenClEngine(*runtime_, host).Solve(small, energy, DynamicsOptions{}).solve_loop,
+            "host");
   // A network whose step reads more than the limit (dense rows of many slots) stays on the host.
   EnergyOptions wide = energy;
   wide.support_radius_px = 60.0;

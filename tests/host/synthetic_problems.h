@@ -63,7 +63,8 @@ inline MatchingProblem SyntheticProblem(std::uint64_t seed, int n_left, int n_di
 /// its disparity; of two candidates of a row on one level the better correlated stays.
 inline MatchingProblem SyntheticDisparityProblem(std::uint64_t seed, int n_left, int n_distractors,
                                                  int max_per_row = 0) {
-  const MatchingProblem features = SyntheticProblem(seed, n_left, n_distractors, false, max_per_row);
+  const MatchingProblem features =
+      SyntheticProblem(seed, n_left, n_distractors, false, max_per_row);
   MatchingProblem problem;
   problem.kind = NetworkKind::kFeatureVsDisparity;
   problem.left_points = features.left_points;
