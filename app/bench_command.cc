@@ -54,10 +54,7 @@ void RunBench(BenchArgs& args) {
   bench.matcher = args.flags.options;
   bench.matcher.candidates.rectified = true;  // the benchmark pair is rectified
   bench.matcher.opencl.profile = args.profile;
-  bench.matcher.opencl.solve_loop =
-      args.solve_loop == "host"     ? hnn::OpenClEngineOptions::SolveLoop::kHost
-      : args.solve_loop == "device" ? hnn::OpenClEngineOptions::SolveLoop::kDevice
-                                    : hnn::OpenClEngineOptions::SolveLoop::kAuto;
+  bench.matcher.opencl.solve_loop = *hnn::ParseSolveLoop(args.solve_loop);  // checked by the flag
   bench.max_disparity = bench.matcher.candidates.max_disparity;
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {

@@ -68,6 +68,13 @@ std::optional<WeightStorage> ParseWeightStorage(std::string_view name) {
   return std::nullopt;
 }
 
+std::optional<OpenClEngineOptions::SolveLoop> ParseSolveLoop(std::string_view name) {
+  if (name == "auto") return OpenClEngineOptions::SolveLoop::kAuto;
+  if (name == "host") return OpenClEngineOptions::SolveLoop::kHost;
+  if (name == "device") return OpenClEngineOptions::SolveLoop::kDevice;
+  return std::nullopt;
+}
+
 double ResidentMaxStepBytes(unsigned compute_units) {
   // With C cores the host loop's step costs about o + W / C (o: a launch and its share of the
   // round trips, W: the step's work on one core), the device loop's W: they cross at

@@ -102,6 +102,9 @@ class OpenClEngine {
   OpenClEngineOptions options_;
 };
 
+/// "auto", "host", "device" <-> OpenClEngineOptions::SolveLoop (the --solve-loop flags).
+std::optional<OpenClEngineOptions::SolveLoop> ParseSolveLoop(std::string_view name);
+
 /// SolveLoop::kAuto's limit on a CPU device of `compute_units` cores: kResidentMaxStepBytes on
 /// two, less on more (the host loop's steps spread over the cores; unlimited on one).
 double ResidentMaxStepBytes(unsigned compute_units);

@@ -178,9 +178,7 @@ int Run(int argc, char** argv) {
       options.block_step = block_step == "item"    ? hnn::OpenClEngineOptions::BlockStep::kRowPerItem
                            : block_step == "group" ? hnn::OpenClEngineOptions::BlockStep::kRowPerGroup
                                                    : hnn::OpenClEngineOptions::BlockStep::kAuto;
-      options.solve_loop = solve_loop == "host"     ? hnn::OpenClEngineOptions::SolveLoop::kHost
-                           : solve_loop == "device" ? hnn::OpenClEngineOptions::SolveLoop::kDevice
-                                                    : hnn::OpenClEngineOptions::SolveLoop::kAuto;
+      options.solve_loop = *hnn::ParseSolveLoop(solve_loop);  // checked by the flag
       hnn::OpenClEngine engine(*runtime, options);
       std::vector<hnn::SolveReport> reports;
       try {

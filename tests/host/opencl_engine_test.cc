@@ -481,6 +481,13 @@ TEST(ResidentLoopLimit, ShrinksWithTheCores) {
   EXPECT_GT(ResidentMaxStepBytes(16), 0.5 * kResidentMaxStepBytes);
 }
 
+TEST(SolveLoopNames, Parse) {
+  EXPECT_EQ(ParseSolveLoop("auto"), OpenClEngineOptions::SolveLoop::kAuto);
+  EXPECT_EQ(ParseSolveLoop("host"), OpenClEngineOptions::SolveLoop::kHost);
+  EXPECT_EQ(ParseSolveLoop("device"), OpenClEngineOptions::SolveLoop::kDevice);
+  EXPECT_FALSE(ParseSolveLoop("gpu").has_value());
+}
+
 TEST(WeightStorageNames, RoundTrip) {
   for (WeightStorage s : {WeightStorage::kAuto, WeightStorage::kCsr, WeightStorage::kBlockedFloat,
                           WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly}) {
