@@ -54,7 +54,7 @@ struct OpenClEngineOptions {
   /// Row blocks: where the solve loop runs. kHost: a launch per step and a host round trip per
   /// convergence check (SolveBlocked). kDevice: the whole loop in one launch of one work-item
   /// (kernel solve_blocked_resident; one network without column uniqueness, else kHost). kAuto:
-  /// kDevice on a CPU device for a single network whose step reads at most
+  /// kDevice on a CPU device for a single network of stored blocks whose step reads at most
   /// ResidentMaxStepBytes(its compute units) (the blocks stay in one core's cache, and the
   /// launches and round trips cost about what the steps do: docs/engine.md), else kHost. Never on a
   /// GPU by default: one work-item would leave the card idle.

@@ -442,9 +442,9 @@ INSTANTIATE_TEST_SUITE_P(Storages, OpenClStorageTest,
                            return name;
                          });
 
-// SolveLoop::kAuto: the loop goes to a CPU device for one small feature-vs-disparity network;
-// batches, feature-vs-feature networks (column sums between steps), large networks and kHost
-// keep it on the host.
+// SolveLoop::kAuto: the loop goes to a CPU device for one small feature-vs-disparity network of
+// stored blocks; batches, feature-vs-feature networks (column sums between steps), on the fly,
+// large networks and kHost keep it on the host.
 TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   if (runtime_->is_gpu()) GTEST_SKIP() << "a CPU device's rule";
   EnergyOptions energy;
@@ -462,6 +462,11 @@ TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   for (const SolveReport& r : automatic.SolveBatch({small, small}, energy, DynamicsOptions{})) {
     EXPECT_EQ(r.solve_loop, "host");
   }
+  // On the fly computes every weight each step: its loop stays on the host (all cores).
+  EXPECT_EQ(OpenClEngine(*runtime_, {WeightStorage::kOnTheFly, 0})
+                .Solve(small, energy, DynamicsOptions{})
+                .solve_loop,
+            "host");
   OpenClEngineOptions host{WeightStorage::kBlockedHalf, 0};
   host.solve_loop = OpenClEngineOptions::SolveLoop::kHost;
   EXPECT_EQ(OpenClEngine(*runtime_, host).Solve(small, energy, DynamicsOptions{}).solve_loop,
