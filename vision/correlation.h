@@ -7,6 +7,13 @@
 
 namespace hnnstereo::vision {
 
+/// Per-pixel statistics of the window x window square centred on each pixel of a CV_8UC1
+/// image, as CV_32FC2: the window sum of I and the inverse norm 1 / sqrt(sum (I - mean)^2)
+/// (the denominator terms of eq. 6.9). Both come from exact integer sums; a flat window gets
+/// an inverse norm of 0, as does every pixel whose window leaves the image (its sum too).
+/// `window`: odd, 1..15.
+cv::Mat ZnccWindowStatistics(const cv::Mat& image, int window);
+
 /// Precomputes window means and norms of both images so that each ZNCC costs one pass over the
 /// window. Windows are square, side 5 or 7 (thesis), centred on the rounded pixel.
 class ZnccMatcher {

@@ -191,6 +191,53 @@ TEST(ZnccMatcher, RowProfilesEqualThePairByPairZnccBitForBit) {
   }
 }
 
+// The window statistics against brute-force integer sums of every window, bit for bit:
+// random images (a grey-level range of 0..255 reaches the largest sums of squares), a flat
+// patch (inverse norm 0), images a window wide and narrower, and every odd window 1..15.
+TEST(ZnccWindowStatistics, EqualBruteForceSumsBitForBit) {
+  std::mt19937 random(kSeed);
+  for (const int window : {1, 3, 5, 7, 9, 15}) {
+    for (const cv::Size size : {cv::Size(37, 23), cv::Size(window, window), cv::Size(window - 1, 40),
+                                cv::Size(64, 17)}) {
+      if (size.width < 1) continue;
+      cv::Mat image = RandomImage(size.height, size.width, &random);
+      if (size.width > 20 && size.height > 12) image(cv::Rect(2, 1, 17, 11)).setTo(200);
+      if (size.width == 64) {  // the largest sums: alternating 0 / 255 columns
+        for (int x = 0; x < image.cols; x += 2) image.col(x).setTo(255);
+        for (int x = 1; x < image.cols; x += 2) image.col(x).setTo(0);
+      }
+      const cv::Mat statistics = ZnccWindowStatistics(image, window);
+      ASSERT_EQ(statistics.type(), CV_32FC2);
+      ASSERT_EQ(statistics.size(), image.size());
+      const int radius = window / 2;
+      const double n = static_cast<double>(window) * window;
+      for (int y = 0; y < image.rows; ++y) {
+        for (int x = 0; x < image.cols; ++x) {
+          float sum_expected = 0.0f, norm_expected = 0.0f;
+          if (y >= radius && x >= radius && y < image.rows - radius && x < image.cols - radius) {
+            long long sum = 0, square = 0;
+            for (int dy = -radius; dy <= radius; ++dy) {
+              for (int dx = -radius; dx <= radius; ++dx) {
+                const long long v = image.at<unsigned char>(y + dy, x + dx);
+                sum += v;
+                square += v * v;
+              }
+            }
+            const double scaled_variance =
+                n * static_cast<double>(square) - static_cast<double>(sum) * static_cast<double>(sum);
+            sum_expected = static_cast<float>(sum);
+            norm_expected =
+                scaled_variance > 0.5 ? static_cast<float>(std::sqrt(n / scaled_variance)) : 0.0f;
+          }
+          const cv::Vec2f got = statistics.at<cv::Vec2f>(y, x);
+          ASSERT_EQ(got[0], sum_expected) << "window " << window << " at " << x << "," << y;
+          ASSERT_EQ(got[1], norm_expected) << "window " << window << " at " << x << "," << y;
+        }
+      }
+    }
+  }
+}
+
 TEST(ZnccMatcher, RejectsBadWindow) {
   const cv::Mat image(20, 20, CV_8UC1, cv::Scalar(0));
   for (const int window : {-1, 0, 1, 2, 4, 6, 16, 17}) {
