@@ -19,6 +19,9 @@ double MillisecondsSince(Clock::time_point start) {
 }
 
 constexpr int kLocalSize = 64;  // power of two, for segment_sum; PoCL vectorises across it
+// The fused step kernels' `check` argument (STEP_BLOCKED_PARAMS in kernels/hopfield.cl: the
+// network's 20, the state's 5, decisions and changes); the group step's local buffer follows.
+constexpr cl_uint kStepCheckArg = 27;
 
 cl::NDRange RoundedRange(std::size_t n) {
   const std::size_t groups = (n + kLocalSize - 1) / kLocalSize;
@@ -120,15 +123,17 @@ class DeviceNetwork {
 
   // Rows whose decision changed since the last call, per network (kDecisions stop rule; empty
   // otherwise). `parity` < 0: the CSR state u; else the blocked state buffer the step read.
+  // The row blocks' step made the check itself (Step(parity, true)); CSR launches row_decisions.
   std::vector<int> DecisionChanges(const DynamicsOptions& dynamics, int parity) {
     if (dynamics.stop_rule != DynamicsOptions::StopRule::kDecisions) return {};
     std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
-    queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(), changes.data());
-    cl::Kernel& kernel = parity < 0 ? decisions_csr_ : decisions_blocked_[parity];
-    Launch(kernel, decision_range_, local_);
+    if (parity < 0) {
+      queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(), changes.data());
+      Launch(decisions_csr_, decision_range_, local_);
+      ++launches_;
+    }
     queue_.enqueueReadBuffer(changes_, CL_TRUE, 0, sizeof(int) * changes.size(), changes.data(),
                              nullptr, Record("read decision changes"));
-    ++launches_;
     ++blocking_reads_;
     return changes;
   }
@@ -201,20 +206,27 @@ class DeviceNetwork {
     ++launches_;
   }
   // One fused step from state buffer `parity` into the other; column sums first when the
-  // network has column uniqueness.
-  void Step(int parity) {
+  // network has column uniqueness. `check`: a convergence check follows, so under the
+  // kDecisions rule the step also counts the rows whose decision changed (decide_row).
+  void Step(int parity, bool check) {
     if (net_.layout.column_uniqueness) {
       Launch(column_sums_blocked_[parity], column_range_, local_);
       ++launches_;
     }
+    const bool decide = check && by_decisions_;
+    if (decide) {
+      queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * zero_changes_.size(),
+                                zero_changes_.data());
+    }
+    step_[parity].setArg(kStepCheckArg, cl_int{decide ? 1 : 0});
     Launch(step_[parity], step_range_, step_local_);
     ++launches_;
   }
   // The convergence check of the blocked solve in one host round trip: per-network energies
   // (segment_sum over the row energies the step wrote) and, under the kDecisions rule, the rows
-  // whose decision changed (`parity`: the state buffer the step read). The energies are read
-  // without blocking; the blocking read of the changes behind them on the in-order queue waits
-  // for both (before: two blocking reads a check).
+  // whose decision changed, which the step before counted (Step(parity, true)). The energies
+  // are read without blocking; the blocking read of the changes behind them on the in-order
+  // queue waits for both.
   void CheckState(const DynamicsOptions& dynamics, int parity, std::vector<float>* energies,
                   std::vector<int>* changes) {
     const bool decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
@@ -465,6 +477,11 @@ class DeviceNetwork {
                                 : cl::NDRange((items + step_local - 1) / step_local * step_local);
     const cl_float two_B = static_cast<cl_float>(2.0 * energy.B);
     const cl_float two_C = static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0);
+    // The decisions check is made by the step itself (decide_row), into these buffers.
+    std::vector<int> row_first(rows, 0);
+    for (std::size_t i = 0; i < rows; ++i) row_first[i] = static_cast<int>(i) * row_pad_;
+    SetUpDecisions(program, row_first, nullptr);
+    by_decisions_ = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
     for (int b = 0; b < 2; ++b) {
       step_[b] = cl::Kernel(program, row_per_group ? "neuron_step_blocked_group"
                                                    : "neuron_step_blocked");
@@ -473,9 +490,10 @@ class DeviceNetwork {
               slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
               two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
-              V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_);
+              V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_,
+              decisions_, changes_, cl_int{0});
       if (row_per_group) {  // the lanes' partial inputs: kStepGroup x ROW_PAD floats
-        step_[b].setArg(25, cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
+        step_[b].setArg(kStepCheckArg + 1, cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
                                       static_cast<std::size_t>(row_pad_)));
       }
       column_sums_blocked_[b] = cl::Kernel(program, "column_sums_blocked");
@@ -488,9 +506,6 @@ class DeviceNetwork {
     row_range_ = RoundedRange(rows);
     column_range_ = RoundedRange(static_cast<std::size_t>(std::max(L.n_columns, 1)));
     segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
-    std::vector<int> row_first(rows, 0);
-    for (std::size_t i = 0; i < rows; ++i) row_first[i] = static_cast<int>(i) * row_pad_;
-    SetUpDecisions(program, row_first, nullptr);
 
     // The solve loop on the device (OpenClEngineOptions::SolveLoop): one network, no column
     // sums between steps, the per-item step (not the GPU's group step).
@@ -517,7 +532,7 @@ class DeviceNetwork {
               network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
               V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_,
-              static_cast<cl_int>(dynamics.max_steps),
+              changes_, static_cast<cl_int>(dynamics.max_steps),
               static_cast<cl_int>(std::max(dynamics.energy_interval, 1)),
               static_cast<cl_int>(dynamics.stable_checks), static_cast<cl_int>(by_decisions),
               static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
@@ -588,12 +603,8 @@ class DeviceNetwork {
               active_, u, decisions_, changes_);
       return kernel;
     };
-    if (u_csr) {
-      decisions_csr_ = make(*u_csr);
-    } else {
-      decisions_blocked_[0] = make(u_state_[0]);
-      decisions_blocked_[1] = make(u_state_[1]);
-    }
+    if (u_csr) decisions_csr_ = make(*u_csr);  // row blocks: the step decides (decide_row)
+    zero_changes_.assign(changes.size(), 0);
     decision_range_ = RoundedRange(row_size.size());
   }
 
@@ -813,7 +824,9 @@ class DeviceNetwork {
   // kDecisions stop rule.
   std::vector<int> rows_per_network_;
   cl::Buffer row_first_, row_size_, decision_network_, decisions_, changes_;
-  cl::Kernel decisions_csr_, decisions_blocked_[2];
+  cl::Kernel decisions_csr_;
+  std::vector<int> zero_changes_;  // written to changes_ before a deciding step (kept alive)
+  bool by_decisions_ = false;
   cl::NDRange decision_range_;
   cl::NDRange row_range_, column_range_, step_range_, step_local_{1}, build_range_;
 
@@ -936,8 +949,9 @@ void SolveBlocked(DeviceNetwork& device, const DynamicsOptions& dynamics,
   std::size_t n_active = n;
   int parity = 0;
   for (int step = 0;; ++step) {
-    device.Step(parity);
-    if (step % dynamics.energy_interval == 0 || step == dynamics.max_steps) {
+    const bool check = step % dynamics.energy_interval == 0 || step == dynamics.max_steps;
+    device.Step(parity, check);
+    if (check) {
       const std::vector<int> before = active;
       std::vector<float> energies;
       std::vector<int> changes;

@@ -530,14 +530,41 @@ void finish_row(FINISH_ROW_PARAMS) {
       __global const float* column_sums, const float two_B, const float two_C,                \
       __global const int* network_of_row, __global const int* active, const float dt,         \
       const float inv_tau, const float alpha
-#define STEP_BLOCKED_PARAMS                                                    \
-  STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in, \
-      __global float* V_out, __global float* u_out, __global float* row_energy
+// `check` != 0: the step also makes the kDecisions check at u_in (decide_row below) into
+// `decisions` and `changes`, which row_decisions made in a launch of its own before.
+#define STEP_BLOCKED_PARAMS                                                            \
+  STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in,         \
+      __global float* V_out, __global float* u_out, __global float* row_energy,        \
+      __global int* decisions, __global int* changes, const int check
 // Their names, to pass them on.
-#define STEP_BLOCKED_ARGS                                                                         \
+#define STEP_NETWORK_ARGS                                                                         \
   n_rows, rows_per_item, row_count, feature_neighbour_offsets, feature_neighbours, blocks,        \
       slot_right, slot_correlation, feature_point, p, slot_bias, slot_column, column_sums, two_B, \
-      two_C, network_of_row, active, dt, inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy
+      two_C, network_of_row, active, dt, inv_tau, alpha
+#define STEP_BLOCKED_ARGS \
+  STEP_NETWORK_ARGS, V_in, u_in, V_out, u_out, row_energy, decisions, changes, check
+
+// The kDecisions check of row i at u (its slots from u + first), exactly as row_decisions makes
+// it: the row's decision - the index of its neuron with the largest u when that u > 0, else -1
+// - against the previous check's, a changed row counted in changes[network]. The fused steps
+// call it for every row they update at a check step: the row's u is in cache, and the check
+// costs no launch (on the 2,000-feature network the separate pass over all rows took as long as
+// the step's block loop, perf of solve_blocked_resident).
+void decide_row(const int i, const int ni, __global const float* u, const int first,
+                __global int* decisions, __global int* changes, const int network) {
+  int best = -1;
+  float best_u = 0.0f;
+  for (int k = 0; k < ni; ++k) {
+    const float uk = u[first + k];
+    if (best < 0 || uk > best_u) {
+      best = k;
+      best_u = uk;
+    }
+  }
+  const int decision = best >= 0 && best_u > 0.0f ? best : -1;
+  if (decision != decisions[i]) atomic_inc(&changes[network]);
+  decisions[i] = decision;
+}
 
 // Row i's compatibility input acc[k] = sum over its neighbour blocks t in [first, end) (every
 // stride-th) of block t times V of the neighbour row, k < ROW_PAD. Both step kernels call it: the
@@ -624,6 +651,11 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
       }
       finish_rows4(i, acc, row_count, slot_bias, slot_column, column_sums, two_B, two_C, dt,
                    inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
+      if (check) {
+        for (int r = i; r < i + 4; ++r) {
+          decide_row(r, row_count[r], u_in, r * ROW_PAD, decisions, changes, network_of_row[r]);
+        }
+      }
       continue;
     }
     for (int r = i; r < i + 4; ++r) {
@@ -634,6 +666,7 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
                 p, V_in, acc);
       finish_row(r, row_count[r], acc, slot_bias, slot_column, column_sums, two_B, two_C, dt,
                  inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
+      if (check) decide_row(r, row_count[r], u_in, r * ROW_PAD, decisions, changes, network_of_row[r]);
     }
   }
 #endif
@@ -646,6 +679,7 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
               feature_neighbours, blocks, slot_right, slot_correlation, feature_point, p, V_in, acc);
     finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
                V_in, u_in, V_out, u_out, row_energy);
+    if (check) decide_row(i, ni, u_in, i * ROW_PAD, decisions, changes, network_of_row[i]);
   }
 }
 
@@ -669,9 +703,10 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,
                                      __global float* V1, __global float* u1,
                                      __global float* row_energy, __global int* decisions,
-                                     const int max_steps, const int interval,
-                                     const int stable_checks, const int by_decisions,
-                                     const float energy_tolerance, const float decision_tolerance,
+                                     __global int* changes, const int max_steps,
+                                     const int interval, const int stable_checks,
+                                     const int by_decisions, const float energy_tolerance,
+                                     const float decision_tolerance,
                                      __global float* energy_trace, __global int* outcome) {
   if (get_global_id(0) != 0) return;
   int parity = 0, stable = 0, checks = 0;
@@ -681,34 +716,21 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
     __global float* u_in = parity ? u1 : u0;
     __global float* V_out = parity ? V0 : V1;
     __global float* u_out = parity ? u0 : u1;
-    step_rows(0, n_rows, STEP_BLOCKED_ARGS);
-    if (step % interval != 0 && step != max_steps) {
+    const int check = step % interval == 0 || step == max_steps;
+    // The rows' decisions at u_in are made inside the step (decide_row) at a check.
+    changes[0] = 0;
+    step_rows(0, n_rows, STEP_NETWORK_ARGS, V_in, u_in, V_out, u_out, row_energy, decisions,
+              changes, check && by_decisions);
+    if (!check) {
       parity = 1 - parity;
       continue;
     }
     float E = 0.0f;
-    int changes = 0;
-    for (int i = 0; i < n_rows; ++i) {
-      E += row_energy[i];
-      // The row's decision at u_in, as row_decisions.
-      const int ni = row_count[i];
-      int best = -1;
-      float best_u = 0.0f;
-      for (int k = 0; k < ni; ++k) {
-        const float uk = u_in[i * ROW_PAD + k];
-        if (best < 0 || uk > best_u) {
-          best = k;
-          best_u = uk;
-        }
-      }
-      const int decision = best >= 0 && best_u > 0.0f ? best : -1;
-      changes += decision != decisions[i];
-      decisions[i] = decision;
-    }
+    for (int i = 0; i < n_rows; ++i) E += row_energy[i];
     energy_trace[checks++] = E;
     if (step > 0) {
-      const int settled =
-          by_decisions ? (float)changes <= decision_tolerance : fabs(E - last) <= energy_tolerance;
+      const int settled = by_decisions ? (float)changes[0] <= decision_tolerance
+                                       : fabs(E - last) <= energy_tolerance;
       stable = settled ? stable + 1 : 0;
     }
     last = E;
@@ -756,6 +778,7 @@ __kernel void neuron_step_blocked_group(STEP_BLOCKED_PARAMS, __local float* part
   for (int k = 0; k < ni; ++k) acc[k] = partial[k * lanes];
   finish_row(i, ni, acc, slot_bias, slot_column, column_sums, two_B, two_C, dt, inv_tau, alpha,
              V_in, u_in, V_out, u_out, row_energy);
+  if (check) decide_row(i, ni, u_in, i * ROW_PAD, decisions, changes, network_of_row[i]);
 }
 
 // The kDecisions stop rule (host/hopfield_options.h): the decision of every row of an active

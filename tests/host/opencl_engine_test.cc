@@ -198,6 +198,52 @@ TEST_P(OpenClStorageTest, SolveAgreesWithTheCpuEngine) {
   }
 }
 
+// The kDecisions stop rule (hnn-default's), whose check the row blocks' step makes itself
+// (decide_row, at the steps before a check) and CSR in a kernel of its own: every storage and
+// both step kinds stop at the cpu reference's step, with its checks and matches; 4-slot rows
+// (four finished at once), 3-slot and wider ones, and a network still changing at the limit.
+TEST_P(OpenClStorageTest, DecisionsRuleStopsWhereTheCpuEngineStops) {
+  const WeightStorage storage = GetParam();
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  for (const int max_per_row : {4, 3, 0}) {
+    for (const int max_steps : {DynamicsOptions{}.max_steps, 5}) {
+      const MatchingProblem problem = testing::SyntheticDisparityProblem(351, 150, 50, max_per_row);
+      DynamicsOptions dynamics;
+      dynamics.stop_rule = DynamicsOptions::StopRule::kDecisions;
+      dynamics.energy_interval = 2;
+      dynamics.stable_checks = 2;
+      dynamics.max_steps = max_steps;
+      const SolveReport cpu = SolveCpu(problem, energy, dynamics);
+      for (const auto step : {OpenClEngineOptions::BlockStep::kRowPerItem,
+                              OpenClEngineOptions::BlockStep::kRowPerGroup}) {
+        for (const auto loop :
+             {OpenClEngineOptions::SolveLoop::kHost, OpenClEngineOptions::SolveLoop::kDevice}) {
+          if (storage == WeightStorage::kCsr && (step != OpenClEngineOptions::BlockStep::kRowPerItem ||
+                                                 loop != OpenClEngineOptions::SolveLoop::kHost)) {
+            continue;  // CSR has one step and one loop
+          }
+          OpenClEngineOptions options{storage, 0};
+          options.block_step = step;
+          options.solve_loop = loop;
+          const SolveReport opencl = OpenClEngine(*runtime_, options).Solve(problem, energy, dynamics);
+          const std::string what =
+              std::string(WeightStorageName(storage)) + " per-row " + std::to_string(max_per_row) +
+              " max_steps " + std::to_string(max_steps) +
+              (step == OpenClEngineOptions::BlockStep::kRowPerGroup ? " group" : " item") +
+              (opencl.solve_loop == "device" ? " device loop" : " host loop");
+          EXPECT_EQ(opencl.iterations, cpu.iterations) << what;
+          EXPECT_EQ(opencl.converged, cpu.converged) << what;
+          EXPECT_EQ(opencl.energy_trace_iterations, cpu.energy_trace_iterations) << what;
+          EXPECT_EQ(MatchedNeurons(problem, opencl), MatchedNeurons(problem, cpu)) << what;
+        }
+      }
+      // The reference settles at step 10; the limit stops it while rows still change.
+      EXPECT_EQ(cpu.converged, max_steps != 5) << "per-row " << max_per_row;
+    }
+  }
+}
+
 // Profiling (bench --profile) times every command on the device without changing the solve:
 // the same state and steps as without it, one "solve" entry per kernel the solve launched, whose
 // counts add up to the engine's own launch count, and device times that fit in the wall time.
