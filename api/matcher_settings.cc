@@ -225,8 +225,8 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   if (auto w = hnn::ParseWeightStorage(strings["weights"])) {
     o.opencl.storage = *w;
   } else {
-    throw std::invalid_argument("unknown weights '" + strings["weights"] +
-                                "' (auto, csr, blocked-float, blocked-half, on-the-fly)");
+    throw std::invalid_argument("unknown weights '" + strings["weights"] + "' (" +
+                                hnn::WeightStorageNames() + ")");
   }
   if (auto m = hnn::ParseDecodeMethod(strings["decode"])) {
     o.decode.method = *m;

@@ -73,8 +73,8 @@ void RunBench(BenchArgs& args) {
   for (const std::string& name : SplitCommas(args.storages)) {
     auto storage = hnn::ParseWeightStorage(name);
     if (!storage) {
-      throw std::invalid_argument("unknown weight storage '" + name + "' in --storages (auto, csr, "
-                                  "blocked-float, blocked-half, on-the-fly)");
+      throw std::invalid_argument("unknown weight storage '" + name + "' in --storages (" +
+                                  hnn::WeightStorageNames() + ")");
     }
     bench.opencl_storages.push_back(*storage);
   }
@@ -201,8 +201,8 @@ void AddBenchCommand(CLI::App& app) {
                   "(the default match)")
       ->capture_default_str();
   cmd->add_option("--storages", args->storages,
-                  "Run the opencl engine once per weight storage listed, e.g. "
-                  "csr,blocked-float,blocked-half,on-the-fly (default: as --weights says)");
+                  "Run the opencl engine once per weight storage listed, comma-separated, of: " +
+                      hnn::WeightStorageNames() + " (default: as --weights says)");
   cmd->add_option("--dense-features", args->bench.dense_features,
                   "Features per image of the thesis-sized --dense case (0 = none)")
       ->capture_default_str();

@@ -219,8 +219,8 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--decode", decode, "thesis (row max, column max, threshold) or one-to-one")
       ->capture_default_str();
   cmd->add_option("--weights", weight_storage,
-                  "opencl engine weight storage: auto (row blocks when rows are short, else csr), "
-                  "csr, blocked-float, blocked-half, on-the-fly (docs/engine.md)")
+                  "opencl engine weight storage: " + hnn::WeightStorageNames() +
+                      " (auto: half row blocks when rows are short, else csr; docs/engine.md)")
       ->capture_default_str();
   cmd->add_option("--min-confidence", o.min_confidence,
                   "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least "

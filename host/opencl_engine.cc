@@ -63,12 +63,26 @@ std::string_view WeightStorageName(WeightStorage storage) {
   return "auto";
 }
 
+namespace {
+constexpr WeightStorage kAllStorages[] = {WeightStorage::kAuto, WeightStorage::kCsr,
+                                          WeightStorage::kBlockedFloat, WeightStorage::kBlockedHalf,
+                                          WeightStorage::kOnTheFly};
+}  // namespace
+
 std::optional<WeightStorage> ParseWeightStorage(std::string_view name) {
-  for (WeightStorage s : {WeightStorage::kAuto, WeightStorage::kCsr, WeightStorage::kBlockedFloat,
-                          WeightStorage::kBlockedHalf, WeightStorage::kOnTheFly}) {
+  for (WeightStorage s : kAllStorages) {
     if (WeightStorageName(s) == name) return s;
   }
   return std::nullopt;
+}
+
+std::string WeightStorageNames() {
+  std::string names;
+  for (WeightStorage s : kAllStorages) {
+    if (!names.empty()) names += ", ";
+    names += WeightStorageName(s);
+  }
+  return names;
 }
 
 std::optional<OpenClEngineOptions::SolveLoop> ParseSolveLoop(std::string_view name) {

@@ -34,6 +34,8 @@ enum class WeightStorage {
 };
 std::string_view WeightStorageName(WeightStorage storage);
 std::optional<WeightStorage> ParseWeightStorage(std::string_view name);
+/// Every storage's name, comma-separated ("auto, csr, ..."), for help texts and errors.
+std::string WeightStorageNames();
 
 struct OpenClEngineOptions {
   WeightStorage storage = WeightStorage::kAuto;
