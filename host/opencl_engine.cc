@@ -492,9 +492,7 @@ class DeviceNetwork {
     const cl_float two_B = static_cast<cl_float>(2.0 * energy.B);
     const cl_float two_C = static_cast<cl_float>(L.column_uniqueness ? 2.0 * energy.C : 0.0);
     // The decisions check is made by the step itself (decide_row), into these buffers.
-    std::vector<int> row_first(rows, 0);
-    for (std::size_t i = 0; i < rows; ++i) row_first[i] = static_cast<int>(i) * row_pad_;
-    SetUpDecisions(program, row_first, nullptr);
+    SetUpDecisions(program, nullptr);
     by_decisions_ = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
     for (int b = 0; b < 2; ++b) {
       step_[b] = cl::Kernel(program, row_per_group ? "neuron_step_blocked_group"
@@ -507,8 +505,9 @@ class DeviceNetwork {
               V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_,
               decisions_, changes_, cl_int{0});
       if (row_per_group) {  // the lanes' partial inputs: kStepGroup x ROW_PAD floats
-        step_[b].setArg(kStepCheckArg + 1, cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
-                                      static_cast<std::size_t>(row_pad_)));
+        step_[b].setArg(kStepCheckArg + 1,
+                        cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
+                                  static_cast<std::size_t>(row_pad_)));
       }
       column_sums_blocked_[b] = cl::Kernel(program, "column_sums_blocked");
       SetArgs(column_sums_blocked_[b], static_cast<cl_int>(L.n_columns), column_offsets_,
@@ -586,9 +585,9 @@ class DeviceNetwork {
   }
 
  private:
-  // Buffers and kernels of the kDecisions stop rule; `row_first` indexes u of either layout.
-  void SetUpDecisions(const cl::Program& program, std::vector<int> row_first,
-                      const cl::Buffer* u_csr) {
+  // Buffers of the kDecisions stop rule, and for CSR (`u_csr`: its state u) the row_decisions
+  // kernel over rows given as (first neuron, count); the row blocks' step decides itself.
+  void SetUpDecisions(const cl::Program& program, const cl::Buffer* u_csr) {
     const NetworkLayout& L = net_.layout;
     const cl::Context& context = runtime_.context();
     std::vector<int> row_size(static_cast<std::size_t>(std::max(L.n_rows, 1)), 0);
@@ -603,22 +602,20 @@ class DeviceNetwork {
       network_of_row[ui] = p;
       ++rows_per_network_[static_cast<std::size_t>(p)];
     }
-    row_first.resize(row_size.size(), 0);
     std::vector<int> decisions(row_size.size(), -2);
     std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
+    decisions_ = MakeBuffer(context, CL_MEM_READ_WRITE, decisions);
+    changes_ = MakeBuffer(context, CL_MEM_READ_WRITE, changes);
+    zero_changes_.assign(changes.size(), 0);
+    if (!u_csr) return;
+    std::vector<int> row_first(L.row_offsets.begin(), L.row_offsets.end() - (L.n_rows > 0 ? 1 : 0));
+    row_first.resize(row_size.size(), 0);
     row_first_ = MakeBuffer(context, CL_MEM_READ_ONLY, row_first);
     row_size_ = MakeBuffer(context, CL_MEM_READ_ONLY, row_size);
     decision_network_ = MakeBuffer(context, CL_MEM_READ_ONLY, network_of_row);
-    decisions_ = MakeBuffer(context, CL_MEM_READ_WRITE, decisions);
-    changes_ = MakeBuffer(context, CL_MEM_READ_WRITE, changes);
-    auto make = [&](const cl::Buffer& u) {
-      cl::Kernel kernel(program, "row_decisions");
-      SetArgs(kernel, static_cast<cl_int>(L.n_rows), row_first_, row_size_, decision_network_,
-              active_, u, decisions_, changes_);
-      return kernel;
-    };
-    if (u_csr) decisions_csr_ = make(*u_csr);  // row blocks: the step decides (decide_row)
-    zero_changes_.assign(changes.size(), 0);
+    decisions_csr_ = cl::Kernel(program, "row_decisions");
+    SetArgs(decisions_csr_, static_cast<cl_int>(L.n_rows), row_first_, row_size_,
+            decision_network_, active_, *u_csr, decisions_, changes_);
     decision_range_ = RoundedRange(row_size.size());
   }
 
@@ -784,9 +781,7 @@ class DeviceNetwork {
     neuron_range_ = RoundedRange(n);
     line_range_ = RoundedRange(static_cast<std::size_t>(L.n_rows) + static_cast<std::size_t>(L.n_columns));
     segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
-    SetUpDecisions(program,
-                   std::vector<int>(L.row_offsets.begin(), L.row_offsets.end() - (L.n_rows > 0 ? 1 : 0)),
-                   &u_);
+    SetUpDecisions(program, &u_);
   }
 
   template <typename... Args>

@@ -666,7 +666,9 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
                 p, V_in, acc);
       finish_row(r, row_count[r], acc, slot_bias, slot_column, column_sums, two_B, two_C, dt,
                  inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
-      if (check) decide_row(r, row_count[r], u_in, r * ROW_PAD, decisions, changes, network_of_row[r]);
+      if (check) {
+        decide_row(r, row_count[r], u_in, r * ROW_PAD, decisions, changes, network_of_row[r]);
+      }
     }
   }
 #endif
@@ -693,11 +695,11 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // kDevice: small networks on a CPU device). It runs SolveBlocked's host loop itself - the fused
 // step of every row as neuron_step_blocked does it, and at every `interval`-th step (and at
 // max_steps) the energy and the stop rule (host/opencl_engine.cc, CheckConvergence; kDecisions
-// as row_decisions counts) - so the solve costs one launch and one read instead of a launch per
-// step and a host round trip per check. On the 2-core CPU device those cost about as much as the
-// step itself on a 2,000-feature network, whose blocks sit in one core's cache
-// (docs/engine.md). One network (no batch), no column uniqueness (no column sums between
-// steps). State buffers 0 and 1 as the host loop's parities; `decisions` starts at -2.
+// counted by the step's decide_row into changes[0]) - so the solve costs one launch and one read
+// instead of a launch per step and a host round trip per check. On the 2-core CPU device those
+// cost about as much as the step itself on a 2,000-feature network, whose blocks sit in one
+// core's cache (docs/engine.md). One network (no batch), no column uniqueness (no column sums
+// between steps). State buffers 0 and 1 as the host loop's parities; `decisions` starts at -2.
 // energy_trace[c] = E at check c (E as the sum of row_energy in row order, where segment_sum
 // adds a tree: equal up to float rounding); outcome = (steps, converged, stop parity, checks).
 __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,

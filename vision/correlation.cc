@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -123,7 +124,11 @@ float WindowDot(int window, const float* left, std::size_t left_stride, const fl
 }  // namespace
 
 cv::Mat ZnccWindowStatistics(const cv::Mat& image, int window) {
-  CV_Assert(image.type() == CV_8UC1 && window >= 1 && window % 2 == 1 && window <= 15);
+  CheckImage(image, "window statistics");
+  if (window < 1 || window > 15 || window % 2 == 0) {
+    throw std::invalid_argument("ZnccWindowStatistics: window must be odd and in 1..15 (got " +
+                                std::to_string(window) + ")");
+  }
   cv::Mat statistics = cv::Mat::zeros(image.size(), CV_32FC2);
   if (image.rows >= window && image.cols >= window) WindowStatisticsKernel(image, window, statistics);
   return statistics;
@@ -137,14 +142,23 @@ ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window)
   }
   CheckImage(left, "left");
   CheckImage(right, "right");
-  // The two images side by side on OpenCV's thread pool.
+  // The two images side by side on OpenCV's thread pool; an exception in either (out of
+  // memory) is carried out of the pool and rethrown here.
+  std::exception_ptr failed[2];
   cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
     for (int side = range.start; side < range.end; ++side) {
-      const cv::Mat& image = side == 0 ? left : right;
-      image.convertTo(side == 0 ? left_ : right_, CV_32F);
-      (side == 0 ? left_stats_ : right_stats_) = ZnccWindowStatistics(image, window);
+      try {
+        const cv::Mat& image = side == 0 ? left : right;
+        image.convertTo(side == 0 ? left_ : right_, CV_32F);
+        (side == 0 ? left_stats_ : right_stats_) = ZnccWindowStatistics(image, window);
+      } catch (...) {
+        failed[side] = std::current_exception();
+      }
     }
   });
+  for (const std::exception_ptr& error : failed) {
+    if (error) std::rethrow_exception(error);
+  }
 }
 
 float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,

@@ -238,6 +238,15 @@ TEST(ZnccWindowStatistics, EqualBruteForceSumsBitForBit) {
   }
 }
 
+TEST(ZnccWindowStatistics, RejectsBadWindowAndImage) {
+  const cv::Mat grey(8, 8, CV_8UC1, cv::Scalar(3));
+  EXPECT_THROW(ZnccWindowStatistics(grey, 4), std::invalid_argument);
+  EXPECT_THROW(ZnccWindowStatistics(grey, 17), std::invalid_argument);
+  EXPECT_THROW(ZnccWindowStatistics(grey, -1), std::invalid_argument);
+  EXPECT_THROW(ZnccWindowStatistics(cv::Mat(8, 8, CV_32FC1), 3), std::invalid_argument);
+  EXPECT_THROW(ZnccWindowStatistics(cv::Mat(), 3), std::invalid_argument);
+}
+
 TEST(ZnccMatcher, RejectsBadWindow) {
   const cv::Mat image(20, 20, CV_8UC1, cv::Scalar(0));
   for (const int window : {-1, 0, 1, 2, 4, 6, 16, 17}) {
