@@ -142,7 +142,8 @@ class DeviceNetwork {
     if (dynamics.stop_rule != DynamicsOptions::StopRule::kDecisions) return {};
     std::vector<int> changes(static_cast<std::size_t>(n_networks()), 0);
     if (parity < 0) {
-      queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(), changes.data());
+      queue_.enqueueWriteBuffer(changes_, CL_FALSE, 0, sizeof(int) * changes.size(),
+                                changes.data());
       Launch(decisions_csr_, decision_range_, local_);
       ++launches_;
     }
@@ -498,12 +499,12 @@ class DeviceNetwork {
       step_[b] = cl::Kernel(program, row_per_group ? "neuron_step_blocked_group"
                                                    : "neuron_step_blocked");
       SetArgs(step_[b], static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
-              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_,
-              slot_correlation_, feature_point_, params, slot_bias_, slot_column_, column_sums_,
-              two_B, two_C, network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
+              row_count_, neighbour_offsets_, neighbours_, blocks_, slot_right_, slot_correlation_,
+              feature_point_, params, slot_bias_, slot_column_, column_sums_, two_B, two_C,
+              network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
-              V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_,
-              decisions_, changes_, cl_int{0});
+              V_state_[b], u_state_[b], V_state_[1 - b], u_state_[1 - b], row_energy_, decisions_,
+              changes_, cl_int{0});
       if (row_per_group) {  // the lanes' partial inputs: kStepGroup x ROW_PAD floats
         step_[b].setArg(kStepCheckArg + 1,
                         cl::Local(sizeof(float) * static_cast<std::size_t>(kStepGroup) *
@@ -544,8 +545,8 @@ class DeviceNetwork {
               feature_point_, params, slot_bias_, slot_column_, column_sums_, two_B, two_C,
               network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
-              V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_,
-              changes_, static_cast<cl_int>(dynamics.max_steps),
+              V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_, changes_,
+              static_cast<cl_int>(dynamics.max_steps),
               static_cast<cl_int>(std::max(dynamics.energy_interval, 1)),
               static_cast<cl_int>(dynamics.stable_checks), static_cast<cl_int>(by_decisions),
               static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
@@ -614,8 +615,8 @@ class DeviceNetwork {
     row_size_ = MakeBuffer(context, CL_MEM_READ_ONLY, row_size);
     decision_network_ = MakeBuffer(context, CL_MEM_READ_ONLY, network_of_row);
     decisions_csr_ = cl::Kernel(program, "row_decisions");
-    SetArgs(decisions_csr_, static_cast<cl_int>(L.n_rows), row_first_, row_size_,
-            decision_network_, active_, *u_csr, decisions_, changes_);
+    SetArgs(decisions_csr_, static_cast<cl_int>(L.n_rows), row_first_, row_size_, decision_network_,
+            active_, *u_csr, decisions_, changes_);
     decision_range_ = RoundedRange(row_size.size());
   }
 

@@ -130,7 +130,9 @@ cv::Mat ZnccWindowStatistics(const cv::Mat& image, int window) {
                                 std::to_string(window) + ")");
   }
   cv::Mat statistics = cv::Mat::zeros(image.size(), CV_32FC2);
-  if (image.rows >= window && image.cols >= window) WindowStatisticsKernel(image, window, statistics);
+  if (image.rows >= window && image.cols >= window) {
+    WindowStatisticsKernel(image, window, statistics);
+  }
   return statistics;
 }
 

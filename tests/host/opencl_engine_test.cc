@@ -219,14 +219,16 @@ TEST_P(OpenClStorageTest, DecisionsRuleStopsWhereTheCpuEngineStops) {
                               OpenClEngineOptions::BlockStep::kRowPerGroup}) {
         for (const auto loop :
              {OpenClEngineOptions::SolveLoop::kHost, OpenClEngineOptions::SolveLoop::kDevice}) {
-          if (storage == WeightStorage::kCsr && (step != OpenClEngineOptions::BlockStep::kRowPerItem ||
-                                                 loop != OpenClEngineOptions::SolveLoop::kHost)) {
+          if (storage == WeightStorage::kCsr &&
+              (step != OpenClEngineOptions::BlockStep::kRowPerItem ||
+               loop != OpenClEngineOptions::SolveLoop::kHost)) {
             continue;  // CSR has one step and one loop
           }
           OpenClEngineOptions options{storage, 0};
           options.block_step = step;
           options.solve_loop = loop;
-          const SolveReport opencl = OpenClEngine(*runtime_, options).Solve(problem, energy, dynamics);
+          const SolveReport opencl =
+              OpenClEngine(*runtime_, options).Solve(problem, energy, dynamics);
           const std::string what =
               std::string(WeightStorageName(storage)) + " per-row " + std::to_string(max_per_row) +
               " max_steps " + std::to_string(max_steps) +

@@ -197,8 +197,8 @@ TEST(ZnccMatcher, RowProfilesEqualThePairByPairZnccBitForBit) {
 TEST(ZnccWindowStatistics, EqualBruteForceSumsBitForBit) {
   std::mt19937 random(kSeed);
   for (const int window : {1, 3, 5, 7, 9, 15}) {
-    for (const cv::Size size : {cv::Size(37, 23), cv::Size(window, window), cv::Size(window - 1, 40),
-                                cv::Size(64, 17)}) {
+    for (const cv::Size size :
+         {cv::Size(37, 23), cv::Size(window, window), cv::Size(window - 1, 40), cv::Size(64, 17)}) {
       if (size.width < 1) continue;
       cv::Mat image = RandomImage(size.height, size.width, &random);
       if (size.width > 20 && size.height > 12) image(cv::Rect(2, 1, 17, 11)).setTo(200);
@@ -223,8 +223,8 @@ TEST(ZnccWindowStatistics, EqualBruteForceSumsBitForBit) {
                 square += v * v;
               }
             }
-            const double scaled_variance =
-                n * static_cast<double>(square) - static_cast<double>(sum) * static_cast<double>(sum);
+            const double scaled_variance = n * static_cast<double>(square) -
+                                           static_cast<double>(sum) * static_cast<double>(sum);
             sum_expected = static_cast<float>(sum);
             norm_expected =
                 scaled_variance > 0.5 ? static_cast<float>(std::sqrt(n / scaled_variance)) : 0.0f;
