@@ -67,8 +67,12 @@ def expect_exception(response, code, what):
 
 
 def kill_and_reconnect(work):
+    # The acknowledge timeout far above any stall: a PLC process that reads its result and is
+    # killed must count as a lost peer, not as an acknowledge timeout. With 5 s, one CI run on
+    # a loaded 2-core machine (a build beside it) saw the timeout first: ack_timeouts 1,
+    # peer_lost 1.
     serve, report = start_serve(work, "kill", OBJECTS,
-                                ["--io-timeout", "300", "--ack-timeout", "5"])
+                                ["--io-timeout", "300", "--ack-timeout", "60"])
     try:
         _, port = serve.host_port()
         delivered = {}  # request -> poses, acknowledged
