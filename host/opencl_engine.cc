@@ -659,7 +659,6 @@ class DeviceNetwork {
       NetworkLayout part = BuildLayout(problem, energy, memory_budget_bytes);
       total_bytes += EstimateSize(part).total_bytes;
       CheckMemoryBudget(total_bytes, memory_budget_bytes, "the batch of networks", part);
-      const int neuron_base = L.n_neurons, row_base = L.n_rows;
       for (int a = 0; a < part.n_neurons; ++a) {
         const Candidate& c = problem.candidates[static_cast<std::size_t>(a)];
         const Eigen::Vector2f& left = problem.left_points[static_cast<std::size_t>(c.left)];
@@ -680,40 +679,45 @@ class DeviceNetwork {
         throw std::invalid_argument(
             "a batch must not mix feature-vs-feature and feature-vs-disparity networks");
       }
-      if (problems.size() == 1) {
-        // One network (every solve but a batch): its layout as it is, moved, not copied
-        // element by element (0.5 ms of a 5,000-feature match).
+      if (p == 0) {
+        // The first network's layout as it is (nothing to offset): moved, not copied element
+        // by element (0.5 ms of a 5,000-feature match; every solve but a batch has one).
         L = std::move(part);
-        net_.network_offsets.push_back(L.n_neurons);
-        AppendInitialState(problem, dynamics);
-        break;
+      } else {
+        AppendLayout(part);
       }
-      const std::int64_t weight_base = L.weight_offsets.back();
-      const int neighbour_base = static_cast<int>(L.feature_neighbours.size());
-      for (int a = 0; a < part.n_neurons; ++a) {
-        const auto ua = static_cast<std::size_t>(a);
-        L.neuron_row.push_back(part.neuron_row[ua] + row_base);
-        L.neuron_column.push_back(part.neuron_column[ua] + L.n_columns);
-        L.weight_offsets.push_back(part.weight_offsets[ua + 1] + weight_base);
-      }
-      for (int i = 0; i < part.n_rows; ++i) {
-        const auto ui = static_cast<std::size_t>(i);
-        L.row_offsets.push_back(part.row_offsets[ui + 1] + neuron_base);
-        L.feature_neighbour_offsets.push_back(part.feature_neighbour_offsets[ui + 1] +
-                                              neighbour_base);
-      }
-      for (int j : part.feature_neighbours) L.feature_neighbours.push_back(j + row_base);
-      for (int k = 0; k < part.n_columns; ++k) {
-        L.column_offsets.push_back(part.column_offsets[static_cast<std::size_t>(k) + 1] +
-                                   neuron_base);
-      }
-      for (int a : part.column_neurons) L.column_neurons.push_back(a + neuron_base);
-      L.n_neurons += part.n_neurons;
-      L.n_rows += part.n_rows;
-      L.n_columns += part.n_columns;
       net_.network_offsets.push_back(L.n_neurons);
       AppendInitialState(problem, dynamics);
     }
+  }
+  // A later network's layout after the ones before it: its neurons, rows, columns and
+  // neighbour lists offset by theirs.
+  void AppendLayout(const NetworkLayout& part) {
+    NetworkLayout& L = net_.layout;
+    const int neuron_base = L.n_neurons, row_base = L.n_rows;
+    const std::int64_t weight_base = L.weight_offsets.back();
+    const int neighbour_base = static_cast<int>(L.feature_neighbours.size());
+    for (int a = 0; a < part.n_neurons; ++a) {
+      const auto ua = static_cast<std::size_t>(a);
+      L.neuron_row.push_back(part.neuron_row[ua] + row_base);
+      L.neuron_column.push_back(part.neuron_column[ua] + L.n_columns);
+      L.weight_offsets.push_back(part.weight_offsets[ua + 1] + weight_base);
+    }
+    for (int i = 0; i < part.n_rows; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      L.row_offsets.push_back(part.row_offsets[ui + 1] + neuron_base);
+      L.feature_neighbour_offsets.push_back(part.feature_neighbour_offsets[ui + 1] +
+                                            neighbour_base);
+    }
+    for (int j : part.feature_neighbours) L.feature_neighbours.push_back(j + row_base);
+    for (int k = 0; k < part.n_columns; ++k) {
+      L.column_offsets.push_back(part.column_offsets[static_cast<std::size_t>(k) + 1] +
+                                 neuron_base);
+    }
+    for (int a : part.column_neurons) L.column_neurons.push_back(a + neuron_base);
+    L.n_neurons += part.n_neurons;
+    L.n_rows += part.n_rows;
+    L.n_columns += part.n_columns;
   }
   // V and u of the network's initial state, after those of the networks before it.
   void AppendInitialState(const MatchingProblem& problem, const DynamicsOptions& dynamics) {

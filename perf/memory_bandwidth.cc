@@ -8,6 +8,8 @@
 #include <thread>
 #include <vector>
 
+#include "host/cpu_clones.h"
+
 namespace hnnstereo::perf {
 namespace {
 
@@ -21,11 +23,8 @@ typedef float Vec16 __attribute__((vector_size(64)));
 constexpr std::size_t kFloatsPerIteration = 64;
 
 // Sum of [begin, end); `end - begin` is a multiple of kFloatsPerIteration. Cloned for AVX-512
-// and AVX2 (x86-64 function multiversioning; not under ThreadSanitizer, whose runtime does not
-// exist yet when the loader runs the clone resolver).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
-__attribute__((target_clones("avx512f", "avx2", "default")))
-#endif
+// and AVX2 (host/cpu_clones.h).
+HNNSTEREO_TARGET_CLONES("avx512f", "avx2", "default")
 double SumRange(const float* begin, const float* end) {
   Vec16 a{}, b{}, c{}, d{};
   for (const float* p = begin; p < end; p += kFloatsPerIteration) {

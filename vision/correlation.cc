@@ -12,18 +12,10 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "host/cpu_clones.h"
+
 namespace hnnstereo::vision {
 namespace {
-
-// Cloned for AVX2 where the CPU has it (x86-64 function multiversioning: the loader picks the
-// clone). Not under ThreadSanitizer: the clone resolver (an ifunc) runs while the loader
-// relocates the program, before TSan's runtime exists, and its instrumented entry crashed
-// every TSan binary at start.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
-#define HNNSTEREO_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define HNNSTEREO_AVX2_CLONES
-#endif
 
 // ZnccWindowStatistics's rows (the image at least a window wide and high). Box sums by two
 // running passes instead of integral images: per column the sums of I and I^2 over the
@@ -219,9 +211,9 @@ namespace {
 // Dots of one fixed window against `count` consecutive windows of a row, 16 at a time held in
 // two 8-lane vectors (GCC/Clang vector extensions, lowered to whatever the target has) over the
 // whole window; the rest one by one. The sums are exact integers, so neither the order nor an
-// FMA changes them. Cloned for AVX2 (HNNSTEREO_AVX2_CLONES).
+// FMA changes them. Cloned for AVX2 where the CPU has it (host/cpu_clones.h).
 typedef float Lanes8 __attribute__((vector_size(32)));
-HNNSTEREO_AVX2_CLONES
+HNNSTEREO_TARGET_CLONES("avx2", "default")
 void RunDotsKernel(int window, const float* fixed, std::size_t fixed_stride,
                    const float* run_corner, std::size_t run_stride, int count, float* dots) {
   int e0 = 0;
