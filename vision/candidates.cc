@@ -185,11 +185,18 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
           scored.push_back({d - d_min, r, 0.0f, m});
         }
       } else {
-        // Its peaks (and/or sub-pixel vertices).
-        for (int d = d_min; d <= d_max; ++d) {
-          const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
-          // -2 marks a level whose right window leaves the image: never a candidate.
-          if (!zncc.RightWindowInside(r)) profile[static_cast<std::size_t>(d - d_min)] = -2.0f;
+        // Its peaks (and/or sub-pixel vertices). -2 marks a level whose right window leaves
+        // the image: never a candidate. The right x falls as d rises, so the levels inside are
+        // one run: only the levels outside it at either end are tested one by one.
+        auto outside = [&](int d) {
+          return !zncc.RightWindowInside(Eigen::Vector2f(l.x() - static_cast<float>(d), l.y()));
+        };
+        int inside_first = d_min, inside_last = d_max;
+        while (inside_first <= d_max && outside(inside_first)) {
+          profile[static_cast<std::size_t>(inside_first++ - d_min)] = -2.0f;
+        }
+        while (inside_last >= inside_first && outside(inside_last)) {
+          profile[static_cast<std::size_t>(inside_last-- - d_min)] = -2.0f;
         }
         const int n = problem.n_columns;
         for (int c = 0; c < n; ++c) {
