@@ -5,6 +5,10 @@
 #include <cstdlib>
 #include <vector>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #include "host/program_cache.h"
 #include "kernels/embedded_kernels.h"
 
@@ -269,15 +273,40 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
   return programs_.emplace(key, std::move(program)).first->second;
 }
 
+Runtime::Scratch::~Scratch() {
+  if (host && queue()) queue.finish();  // nothing may still use the memory freed below
+}
+
 cl::Buffer Runtime::ScratchBuffer(const std::string& purpose, std::size_t bytes) {
   bytes = std::max<std::size_t>(bytes, 4);
-  auto& [buffer, size] = scratch_[purpose];
-  if (size < bytes) {
-    buffer = cl::Buffer();  // release the old one before allocating the larger
-    buffer = cl::Buffer(context_, CL_MEM_READ_WRITE, bytes);
-    size = bytes;
+  Scratch& scratch = scratch_[purpose];
+  if (scratch.size < bytes) {
+    // Release the old one before allocating the larger.
+    queue_.finish();
+    scratch.buffer = cl::Buffer();
+    scratch.host.reset();
+    scratch.size = 0;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    // A CPU device's buffer is host memory: a large one is allocated here, 2 MB aligned and
+    // advised to the kernel as transparent huge pages before its first touch. A weight stream
+    // of hundreds of MB then costs a TLB entry per 2 MB instead of per 4 KB, and its first
+    // touch a page fault per 2 MB (docs/engine.md, "Huge pages").
+    constexpr std::size_t kHugePage = std::size_t{2} << 20;
+    if (!is_gpu_ && bytes >= 4 * kHugePage) {
+      const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+      if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
+        madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages
+        scratch.host.reset(memory);
+        scratch.queue = queue_;
+        scratch.buffer =
+            cl::Buffer(context_, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, bytes, memory);
+      }
+    }
+#endif
+    if (!scratch.buffer()) scratch.buffer = cl::Buffer(context_, CL_MEM_READ_WRITE, bytes);
+    scratch.size = bytes;
   }
-  return buffer;
+  return scratch.buffer;
 }
 
 }  // namespace hnnstereo::ocl
