@@ -273,40 +273,43 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
   return programs_.emplace(key, std::move(program)).first->second;
 }
 
-Runtime::Scratch::~Scratch() {
-  if (host && queue()) queue.finish();  // nothing may still use the memory freed below
+cl::Buffer Runtime::NewBuffer(cl_mem_flags flags, std::size_t bytes) {
+  bytes = std::max<std::size_t>(bytes, 4);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  // A CPU device's buffer is host memory: a large one is allocated here, 2 MB aligned and
+  // advised to the kernel as transparent huge pages before its first touch. A weight stream of
+  // hundreds of MB then costs a TLB entry per 2 MB instead of per 4 KB, and its first touch a
+  // page fault per 2 MB (docs/engine.md, "Huge pages"). The memory is freed by the buffer's
+  // destructor callback, once the OpenCL runtime is done with it.
+  constexpr std::size_t kHugePage = std::size_t{2} << 20;
+  if (!is_gpu_ && bytes >= kHugeBufferBytes) {
+    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
+      madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages
+      cl_int error = CL_SUCCESS;
+      cl_mem buffer = clCreateBuffer(context_(), flags | CL_MEM_USE_HOST_PTR, bytes, memory, &error);
+      if (error == CL_SUCCESS) {
+        error = clSetMemObjectDestructorCallback(
+            buffer, [](cl_mem, void* user) { std::free(user); }, memory);
+        if (error == CL_SUCCESS) return cl::Buffer(buffer);  // takes the reference
+        clReleaseMemObject(buffer);  // never used: its memory can go at once
+      }
+      std::free(memory);
+    }
+  }
+#endif
+  return cl::Buffer(context_, flags, bytes);
 }
 
 cl::Buffer Runtime::ScratchBuffer(const std::string& purpose, std::size_t bytes) {
   bytes = std::max<std::size_t>(bytes, 4);
-  Scratch& scratch = scratch_[purpose];
-  if (scratch.size < bytes) {
-    // Release the old one before allocating the larger.
-    queue_.finish();
-    scratch.buffer = cl::Buffer();
-    scratch.host.reset();
-    scratch.size = 0;
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    // A CPU device's buffer is host memory: a large one is allocated here, 2 MB aligned and
-    // advised to the kernel as transparent huge pages before its first touch. A weight stream
-    // of hundreds of MB then costs a TLB entry per 2 MB instead of per 4 KB, and its first
-    // touch a page fault per 2 MB (docs/engine.md, "Huge pages").
-    constexpr std::size_t kHugePage = std::size_t{2} << 20;
-    if (!is_gpu_ && bytes >= 4 * kHugePage) {
-      const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-      if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
-        madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages
-        scratch.host.reset(memory);
-        scratch.queue = queue_;
-        scratch.buffer =
-            cl::Buffer(context_, CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR, bytes, memory);
-      }
-    }
-#endif
-    if (!scratch.buffer()) scratch.buffer = cl::Buffer(context_, CL_MEM_READ_WRITE, bytes);
-    scratch.size = bytes;
+  auto& [buffer, size] = scratch_[purpose];
+  if (size < bytes) {
+    buffer = cl::Buffer();  // release the old one before allocating the larger
+    buffer = NewBuffer(CL_MEM_READ_WRITE, bytes);
+    size = bytes;
   }
-  return scratch.buffer;
+  return buffer;
 }
 
 }  // namespace hnnstereo::ocl

@@ -92,12 +92,19 @@ class Runtime {
   /// A read-write device buffer of at least `bytes` for `purpose`, the one of the last call
   /// with that purpose when it is large enough (grown otherwise). On a CPU device the first
   /// touch of a fresh buffer costs a page fault per 4 KB: on all of Teddy's 66 MB of weight
-  /// blocks that was ~20-30 ms of every match. There, a buffer of 8 MB or more lies over host
-  /// memory of the runtime's own, 2 MB aligned and advised as transparent huge pages (Linux),
-  /// so that streaming it costs a TLB entry per 2 MB. Its contents are whatever the last user left;
+  /// blocks that was ~20-30 ms of every match. Allocated by NewBuffer. Its contents are
+  /// whatever the last user left;
   /// the caller must write before reading, and be done with it before the next call with the
   /// same purpose (a runtime is used from one thread, like Program()).
   cl::Buffer ScratchBuffer(const std::string& purpose, std::size_t bytes);
+
+  /// Buffers of at least this size get huge pages on a CPU device (NewBuffer).
+  static constexpr std::size_t kHugeBufferBytes = std::size_t{8} << 20;
+  /// A new device buffer of `bytes` with `flags` (no host pointer flags). On a CPU device one of
+  /// kHugeBufferBytes or more lies over host memory of its own, 2 MB aligned and advised as
+  /// transparent huge pages (Linux; plain small pages where the system disabled them), so that
+  /// streaming it costs a TLB entry per 2 MB; the memory is freed with the buffer.
+  cl::Buffer NewBuffer(cl_mem_flags flags, std::size_t bytes);
 
  private:
   Runtime(cl::Context context, cl::Device device, std::string description);
@@ -107,15 +114,7 @@ class Runtime {
   std::string description_;
   bool is_gpu_ = false;
   std::map<std::tuple<std::string, std::string>, cl::Program> programs_;
-  // A scratch buffer, on a CPU device possibly over host memory of its own (ScratchBuffer).
-  struct Scratch {
-    ~Scratch();
-    cl::CommandQueue queue;  // set with host: finished before host is freed
-    std::unique_ptr<void, void (*)(void*)> host{nullptr, std::free};
-    cl::Buffer buffer;  // declared after host: released before it
-    std::size_t size = 0;
-  };
-  std::map<std::string, Scratch> scratch_;
+  std::map<std::string, std::pair<cl::Buffer, std::size_t>> scratch_;
 };
 
 }  // namespace hnnstereo::ocl
