@@ -287,7 +287,8 @@ cl::Buffer Runtime::NewBuffer(cl_mem_flags flags, std::size_t bytes) {
     if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
       madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages
       cl_int error = CL_SUCCESS;
-      cl_mem buffer = clCreateBuffer(context_(), flags | CL_MEM_USE_HOST_PTR, bytes, memory, &error);
+      cl_mem buffer =
+          clCreateBuffer(context_(), flags | CL_MEM_USE_HOST_PTR, bytes, memory, &error);
       if (error == CL_SUCCESS) {
         error = clSetMemObjectDestructorCallback(
             buffer, [](cl_mem, void* user) { std::free(user); }, memory);

@@ -60,8 +60,8 @@ ReadBandwidth MeasureDeviceReadBandwidth(ocl::Runtime& runtime,
   result.bytes = bytes;
   result.threads = static_cast<int>(items);
   result.method = "OpenCL kernel stream_read_" + std::string(gpu ? "strided" : "chunked") +
-                  " summing a " + std::to_string(bytes >> 20) + " MB float array on the device (" + (gpu ? "" : "huge pages advised, ") +
-                  std::to_string(items) + " work-items, " +
+                  " summing a " + std::to_string(bytes >> 20) + " MB float array on the device (" +
+                  (gpu ? "" : "huge pages advised, ") + std::to_string(items) + " work-items, " +
                   (gpu ? "float4 loads" : "float16 loads") +
                   "), profiling-event time, fastest of " + std::to_string(gbps.size()) + " passes";
   return result;

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
-#include <new>
 #include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -65,8 +65,8 @@ ReadBandwidth MeasureReadBandwidth(const ReadBandwidthOptions& options) {
   // weight stream it is compared with. Small pages where the system disabled them.
   constexpr std::size_t kHugePage = std::size_t{2} << 20;
   const std::size_t rounded = (count * sizeof(float) + kHugePage - 1) / kHugePage * kHugePage;
-  std::unique_ptr<float, void (*)(void*)> data(static_cast<float*>(std::aligned_alloc(kHugePage, rounded)),
-                                               std::free);
+  std::unique_ptr<float, void (*)(void*)> data(
+      static_cast<float*>(std::aligned_alloc(kHugePage, rounded)), std::free);
   if (!data) throw std::bad_alloc();
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
   madvise(data.get(), rounded, MADV_HUGEPAGE);  // advice: failure is harmless
@@ -111,8 +111,7 @@ ReadBandwidth MeasureReadBandwidth(const ReadBandwidthOptions& options) {
   result.bytes = count * sizeof(float);
   result.threads = threads;
   result.method = "sum of a " + std::to_string(result.bytes >> 20) +
-                  " MB float array (2 MB aligned, huge pages advised), " +
-                  std::to_string(threads) +
+                  " MB float array (2 MB aligned, huge pages advised), " + std::to_string(threads) +
                   " threads, four 64-byte vector accumulators, fastest of " +
                   std::to_string(gbps.size()) + " passes";
   return result;
