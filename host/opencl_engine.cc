@@ -50,6 +50,16 @@ cl::Buffer MakeBuffer(const cl::Context& context, cl_mem_flags flags, std::vecto
   return cl::Buffer(context, flags | CL_MEM_COPY_HOST_PTR, sizeof(T) * data.size(), data.data());
 }
 
+// A read-only copy of `data` on the device without a host copy first (an empty vector gives one
+// zero element); the OpenCL call takes a non-const pointer to the data it only reads.
+template <typename T>
+cl::Buffer MakeReadOnlyBuffer(const cl::Context& context, const std::vector<T>& data) {
+  const T zero{};
+  const T* source = data.empty() ? &zero : data.data();
+  return cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
+                    sizeof(T) * std::max<std::size_t>(data.size(), 1), const_cast<T*>(source));
+}
+
 }  // namespace
 
 std::string_view WeightStorageName(WeightStorage storage) {
@@ -400,14 +410,11 @@ class DeviceNetwork {
       }
     }
     // Columns as padded slots (feature-vs-feature networks).
-    host_blocked_.column_offsets = L.column_offsets;
     host_blocked_.column_slots.clear();
     for (int a : L.column_neurons) {
       const int i = L.neuron_row[static_cast<std::size_t>(a)];
       host_blocked_.column_slots.push_back(i * row_pad_ + a - L.row_offsets[static_cast<std::size_t>(i)]);
     }
-    host_blocked_.neighbour_offsets = L.feature_neighbour_offsets;
-    host_blocked_.neighbours = L.feature_neighbours;
     host_blocked_.network_row_offsets = {0};
     for (std::size_t p = 0; p + 1 < net_.network_offsets.size(); ++p) {
       int rows = host_blocked_.network_row_offsets.back();
@@ -418,9 +425,10 @@ class DeviceNetwork {
     std::vector<cl_float2> feature_point = net_.feature_point;
     feature_point_ = MakeBuffer(context, ro, feature_point);
     row_count_ = MakeBuffer(context, ro, host_blocked_.row_count);
-    neighbour_offsets_ = MakeBuffer(context, ro, host_blocked_.neighbour_offsets);
-    neighbours_ = MakeBuffer(context, ro, host_blocked_.neighbours);
-    column_offsets_ = MakeBuffer(context, ro, host_blocked_.column_offsets);
+    // The layout's own lists, not copies (26 MB of neighbours on all of Aloe).
+    neighbour_offsets_ = MakeReadOnlyBuffer(context, L.feature_neighbour_offsets);
+    neighbours_ = MakeReadOnlyBuffer(context, L.feature_neighbours);
+    column_offsets_ = MakeReadOnlyBuffer(context, L.column_offsets);
     column_slots_ = MakeBuffer(context, ro, host_blocked_.column_slots);
     slot_right_ = MakeBuffer(context, ro, slot_right);
     slot_correlation_ = MakeBuffer(context, ro, slot_correlation);
@@ -833,8 +841,7 @@ class DeviceNetwork {
 
   // Row-blocked state.
   struct HostBlocked {
-    std::vector<int> row_count, column_offsets, column_slots, neighbour_offsets, neighbours,
-        network_row_offsets;
+    std::vector<int> row_count, column_slots, network_row_offsets;
   };
   WeightStorage storage_ = WeightStorage::kCsr;
   int row_pad_ = 4;
