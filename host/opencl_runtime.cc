@@ -279,8 +279,8 @@ cl::Buffer Runtime::NewBuffer(cl_mem_flags flags, std::size_t bytes) {
   // A CPU device's buffer is host memory: a large one is allocated here, 2 MB aligned and
   // advised to the kernel as transparent huge pages before its first touch. A weight stream of
   // hundreds of MB then costs a TLB entry per 2 MB instead of per 4 KB, and its first touch a
-  // page fault per 2 MB (docs/engine.md, "Huge pages"). The memory is freed by the buffer's
-  // destructor callback, once the OpenCL runtime is done with it.
+  // page fault per 2 MB (docs/engine.md, "Huge pages, and the host stages of large networks").
+  // The memory is freed by the buffer's destructor callback, once OpenCL is done with it.
   constexpr std::size_t kHugePage = std::size_t{2} << 20;
   if (!is_gpu_ && bytes >= kHugeBufferBytes) {
     const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
