@@ -282,7 +282,7 @@ cl::Buffer Runtime::NewBuffer(cl_mem_flags flags, std::size_t bytes) {
   // page fault per 2 MB (docs/engine.md, "Huge pages, and the host stages of large networks").
   // The memory is freed by the buffer's destructor callback, once OpenCL is done with it.
   constexpr std::size_t kHugePage = std::size_t{2} << 20;
-  if (!is_gpu_ && bytes >= kHugeBufferBytes) {
+  if (bytes >= kHugeBufferBytes && (device_.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU) != 0) {
     const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
     if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
       madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages

@@ -93,9 +93,9 @@ class Runtime {
   /// with that purpose when it is large enough (grown otherwise). On a CPU device the first
   /// touch of a fresh buffer costs a page fault per 4 KB: on all of Teddy's 66 MB of weight
   /// blocks that was ~20-30 ms of every match. Allocated by NewBuffer. Its contents are
-  /// whatever the last user left;
-  /// the caller must write before reading, and be done with it before the next call with the
-  /// same purpose (a runtime is used from one thread, like Program()).
+  /// whatever the last user left; the caller must write before reading, and be done with it
+  /// before the next call with the same purpose (a runtime is used from one thread, like
+  /// Program()).
   cl::Buffer ScratchBuffer(const std::string& purpose, std::size_t bytes);
 
   /// Buffers of at least this size get huge pages on a CPU device (NewBuffer).
