@@ -134,10 +134,10 @@ void OuterRing(const GridCopy& copy, int first, int last, std::vector<StereoMatc
 }  // namespace
 
 // Fills StereoMatch::neighbours / agreeing / surface_residual (ConfidenceOptions) for all
-// decoded matches, in two passes over uniform grids of the left points: cells of 12 px for the
-// inner rings and the surface, of 24 px for the outer ring, each match scanning the 3 x 3 cells
-// around it (a scan cut to the disk's chord over finer cells was measured: its short rows made
-// it slower). The points are copied in grid order, so a scan reads contiguous memory, and the
+// decoded matches, in two passes over one uniform grid of the left points (cells of 12 px):
+// each match scans the 3 x 3 cells around it for the inner rings and the surface, the 5 x 5
+// for the outer ring (a 24 px grid's 3 x 3 cells read twice the area; a scan cut to the disk's
+// chord over finer cells was measured too: its short rows made it slower). The points are copied in grid order, so a scan reads contiguous memory, and the
 // counts are branch-free. The surface is the least-squares plane
 // s(u, v) = a + b u + c v through the neighbours' displacements s within kSurfaceRadiusPx, in
 // coordinates (u, v) centred on the match, so its value at the match is a: normal equations from
@@ -151,13 +151,12 @@ void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
   for (std::size_t i = 0; i < matches.size(); ++i) points[i] = matches[i].left;
   const auto stripes = static_cast<double>(std::max<std::size_t>(1, matches.size() / 1024));
   const cv::Range all(0, static_cast<int>(matches.size()));
-  const GridCopy inner = CopyInGridOrder(matches, points, kAgreementRadiiPx[2]);
+  const GridCopy copy = CopyInGridOrder(matches, points, kAgreementRadiiPx[2]);
   cv::parallel_for_(
-      all, [&](const cv::Range& range) { InnerRings(inner, range.start, range.end, matches); },
+      all, [&](const cv::Range& range) { InnerRings(copy, range.start, range.end, matches); },
       stripes);
-  const GridCopy outer = CopyInGridOrder(matches, points, kAgreementRadiiPx[3]);
   cv::parallel_for_(
-      all, [&](const cv::Range& range) { OuterRing(outer, range.start, range.end, matches); },
+      all, [&](const cv::Range& range) { OuterRing(copy, range.start, range.end, matches); },
       stripes);
 }
 
