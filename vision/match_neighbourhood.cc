@@ -137,12 +137,13 @@ void OuterRing(const GridCopy& copy, int first, int last, std::vector<StereoMatc
 // decoded matches, in two passes over one uniform grid of the left points (cells of 12 px):
 // each match scans the 3 x 3 cells around it for the inner rings and the surface, the 5 x 5
 // for the outer ring (a 24 px grid's 3 x 3 cells read twice the area; a scan cut to the disk's
-// chord over finer cells was measured too: its short rows made it slower). The points are copied in grid order, so a scan reads contiguous memory, and the
-// counts are branch-free. The surface is the least-squares plane
-// s(u, v) = a + b u + c v through the neighbours' displacements s within kSurfaceRadiusPx, in
-// coordinates (u, v) centred on the match, so its value at the match is a: normal equations from
-// the sums of 1, u, v, uu, uv, vv and s, us, vs (per displacement component), solved with a small
-// ridge on the slopes so that neighbours on one line (an edge) still give a.
+// chord over finer cells was measured too: its short rows made it slower). The points are
+// copied in grid order, so a scan reads contiguous memory, and the counts are branch-free. The
+// surface is the least-squares plane s(u, v) = a + b u + c v through the neighbours'
+// displacements s within kSurfaceRadiusPx, in coordinates (u, v) centred on the match, so its
+// value at the match is a: normal equations from the sums of 1, u, v, uu, uv, vv and s, us, vs
+// (per displacement component), solved with a small ridge on the slopes so that neighbours on
+// one line (an edge) still give a.
 void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
   if (matches.empty()) return;
   static_assert(kAgreementRadiiPx.size() == 4 && kAgreementRadiiPx[2] == kSurfaceRadiusPx &&
