@@ -1,11 +1,12 @@
 // Runtime::ScratchBuffer: a buffer kept per purpose and grown when asked for more. On a CPU
-// device a large one lies over host memory of the runtime's own (2 MB aligned, advised as huge
-// pages); it must hold what a kernel writes and what the host writes, across a growth, at
-// sizes on both sides of that threshold.
+// device a large one (Runtime::NewBuffer) lies over host memory of its own, 2 MB aligned and
+// advised as huge pages; it must hold what a kernel writes and what the host writes, across a
+// growth, at sizes on both sides of that threshold.
 #include <gtest/gtest.h>
 
 #include <cstddef>
 #include <numeric>
+#include <string>
 #include <vector>
 
 #include "host/opencl_runtime.h"
