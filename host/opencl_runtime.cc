@@ -5,10 +5,7 @@
 #include <cstdlib>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
+#include "host/huge_pages.h"
 #include "host/program_cache.h"
 #include "kernels/embedded_kernels.h"
 
@@ -275,30 +272,24 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
 
 cl::Buffer Runtime::NewBuffer(cl_mem_flags flags, std::size_t bytes) {
   bytes = std::max<std::size_t>(bytes, 4);
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  // A CPU device's buffer is host memory: a large one is allocated here, 2 MB aligned and
-  // advised to the kernel as transparent huge pages before its first touch. A weight stream of
-  // hundreds of MB then costs a TLB entry per 2 MB instead of per 4 KB, and its first touch a
-  // page fault per 2 MB (docs/engine.md, "Huge pages, and the host stages of large networks").
-  // The memory is freed by the buffer's destructor callback, once OpenCL is done with it.
-  constexpr std::size_t kHugePage = std::size_t{2} << 20;
+  // A CPU device's buffer is host memory: a large one lies over huge pages of its own
+  // (host/huge_pages.h), freed by the buffer's destructor callback once OpenCL is done with it.
   if (bytes >= kHugeBufferBytes && (device_.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_CPU) != 0) {
-    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-    if (void* memory = std::aligned_alloc(kHugePage, rounded)) {
-      madvise(memory, rounded, MADV_HUGEPAGE);  // advice: without it, small pages
+    if (HugePageMemory memory = AllocateHugePages(bytes)) {
       cl_int error = CL_SUCCESS;
       cl_mem buffer =
-          clCreateBuffer(context_(), flags | CL_MEM_USE_HOST_PTR, bytes, memory, &error);
+          clCreateBuffer(context_(), flags | CL_MEM_USE_HOST_PTR, bytes, memory.get(), &error);
       if (error == CL_SUCCESS) {
         error = clSetMemObjectDestructorCallback(
-            buffer, [](cl_mem, void* user) { std::free(user); }, memory);
-        if (error == CL_SUCCESS) return cl::Buffer(buffer);  // takes the reference
+            buffer, [](cl_mem, void* user) { std::free(user); }, memory.get());
+        if (error == CL_SUCCESS) {
+          memory.release();           // now the callback's
+          return cl::Buffer(buffer);  // takes the reference
+        }
         clReleaseMemObject(buffer);  // never used: its memory can go at once
       }
-      std::free(memory);
     }
   }
-#endif
   return cl::Buffer(context_, flags, bytes);
 }
 

@@ -4,7 +4,6 @@
 
 #include <CL/opencl.hpp>
 #include <cstdint>
-#include <cstdlib>
 #include <map>
 #include <memory>
 #include <optional>

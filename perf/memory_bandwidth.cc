@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <memory>
 #include <new>
 #include <stdexcept>
@@ -10,11 +9,8 @@
 #include <thread>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
 #include "host/cpu_clones.h"
+#include "host/huge_pages.h"
 
 namespace hnnstereo::perf {
 namespace {
@@ -60,23 +56,17 @@ ReadBandwidth MeasureReadBandwidth(const ReadBandwidthOptions& options) {
       kFloatsPerIteration, options.bytes / sizeof(float) / static_cast<std::size_t>(threads) /
                                kFloatsPerIteration * kFloatsPerIteration);
   const std::size_t count = per_thread * static_cast<std::size_t>(threads);
-  // 2 MB aligned and advised as transparent huge pages (Linux), as the engine's large buffers on
-  // a CPU device (ocl::Runtime::NewBuffer): the limit is measured under the same TLB reach as the
-  // weight stream it is compared with. Small pages where the system disabled them.
-  constexpr std::size_t kHugePage = std::size_t{2} << 20;
-  const std::size_t rounded = (count * sizeof(float) + kHugePage - 1) / kHugePage * kHugePage;
-  std::unique_ptr<float, void (*)(void*)> data(
-      static_cast<float*>(std::aligned_alloc(kHugePage, rounded)), std::free);
-  if (!data) throw std::bad_alloc();
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  madvise(data.get(), rounded, MADV_HUGEPAGE);  // advice: failure is harmless
-#endif
+  // Over huge pages, as the engine's large buffers on a CPU device (host/huge_pages.h): the
+  // limit is measured under the same TLB reach as the weight stream it is compared with.
+  const HugePageMemory memory = AllocateHugePages(count * sizeof(float));
+  if (!memory) throw std::bad_alloc();
+  float* const data = static_cast<float*>(memory.get());
   std::vector<double> sums(static_cast<std::size_t>(threads));
   auto run = [&](bool fill) {
     std::vector<std::thread> pool;
     for (int t = 0; t < threads; ++t) {
       pool.emplace_back([&, t] {
-        float* begin = data.get() + per_thread * static_cast<std::size_t>(t);
+        float* begin = data + per_thread * static_cast<std::size_t>(t);
         if (fill) {
           std::fill(begin, begin + per_thread, 1.0f);  // first touch by the reading thread
         } else {
