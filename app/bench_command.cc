@@ -21,6 +21,7 @@ struct BenchArgs {
   std::string storages;
   std::string engines = "opencl,cpu,thesis";
   std::string solve_loop = "auto";
+  int loop_groups = 0;  // OpenClEngineOptions::resident_groups
   bool quick = false;
   bool profile = false;
   perf::ThroughputBenchOptions bench;
@@ -55,6 +56,7 @@ void RunBench(BenchArgs& args) {
   bench.matcher.candidates.rectified = true;  // the benchmark pair is rectified
   bench.matcher.opencl.profile = args.profile;
   bench.matcher.opencl.solve_loop = *hnn::ParseSolveLoop(args.solve_loop);  // checked by the flag
+  bench.matcher.opencl.resident_groups = args.loop_groups;
   bench.max_disparity = bench.matcher.candidates.max_disparity;
   bench.sparse_sizes.clear();
   for (const std::string& size : SplitCommas(args.sizes)) {
@@ -116,7 +118,9 @@ void RunBench(BenchArgs& args) {
     if (run.contains("weight_storage") && engine.find(':') == std::string::npos) {
       engine += ":" + run["weight_storage"].get<std::string>();
     }
-    if (run.value("solve_loop", "") == "device") engine += " (1 launch)";
+    if (run.value("solve_loop", "") == "device") {
+      engine += " (1 launch x" + std::to_string(run.value("solve_groups", 1)) + ")";
+    }
     if (run["engine_used"].get<std::string>() != run["engine"].get<std::string>().substr(0, run["engine_used"].get<std::string>().size())) {
       engine = run["engine_used"].get<std::string>() + " (fallback)";
     }
@@ -217,8 +221,14 @@ void AddBenchCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--solve-loop", args->solve_loop,
                   "Where the opencl row-block solve loops: auto (in one launch on a CPU device "
-                  "for one small network, else a launch per step), host or device (docs/engine.md)")
+                  "for one network without column sums, else a launch per step), host or device "
+                  "(docs/engine.md)")
       ->check(CLI::IsMember({"auto", "host", "device"}))
+      ->capture_default_str();
+  cmd->add_option("--loop-groups", args->loop_groups,
+                  "Device solve loop: work-groups (threads) that step the rows and meet after "
+                  "every step (0 = one per compute unit on a CPU device)")
+      ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");
   cmd->add_flag("--profile", args->profile,

@@ -23,6 +23,9 @@ inline constexpr int kStepGroup = 32;
 /// between 1.5 and 2.4 MB (docs/engine.md).
 inline constexpr double kResidentMaxStepBytes = 2.0e6;
 
+/// SolveLoop::kDevice with automatic groups gives each work-group at least this many rows.
+inline constexpr int kResidentRowsPerGroup = 128;
+
 /// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
 enum class WeightStorage {
   kAuto,          ///< row blocks (half) when padding wastes < 2x (on a GPU: and rows of <= 8
@@ -62,6 +65,12 @@ struct OpenClEngineOptions {
   /// GPU by default: one work-item would leave the card idle.
   enum class SolveLoop { kAuto, kHost, kDevice };
   SolveLoop solve_loop = SolveLoop::kAuto;
+  /// The device loop's work-groups (one work-item each, a thread of its own on a CPU device),
+  /// each stepping its share of the rows, all meeting at a barrier after every step (kernel
+  /// solve_blocked_resident). 0 = automatic: one per compute unit on a CPU device, fewer for
+  /// networks of under kResidentRowsPerGroup rows a group, one on a GPU. Where the groups do
+  /// not all run at once (PoCL with one thread), the solve falls back to one group.
+  int resident_groups = 0;
   /// Time every kernel and convergence-check read on the device (a queue with
   /// CL_QUEUE_PROFILING_ENABLE, one event per command): SolveReport::kernel_times, `bench
   /// --profile`. Off by default: events cost host time on every launch.
@@ -106,6 +115,13 @@ class OpenClEngine {
 
 /// "auto", "host", "device" <-> OpenClEngineOptions::SolveLoop (the --solve-loop flags).
 std::optional<OpenClEngineOptions::SolveLoop> ParseSolveLoop(std::string_view name);
+
+/// The device loop's rows per work-group: `groups` + 1 cuts of [0, n_rows) at multiples of four
+/// rows (four 4-slot rows finish as one vector) that give the groups about equal work, a row
+/// costing its neighbour blocks (neighbour_offsets[i + 1] - neighbour_offsets[i]) plus eight
+/// for its finish. Fewer groups when the rows do not go round.
+std::vector<int> ResidentGroupRows(const std::vector<int>& neighbour_offsets, int n_rows,
+                                   int groups);
 
 /// SolveLoop::kAuto's limit on a CPU device of `compute_units` cores: kResidentMaxStepBytes on
 /// two, less on more (the host loop's steps spread over the cores; unlimited on one).

@@ -43,7 +43,7 @@ int Run(int argc, char** argv) {
   std::vector<std::string> storages = {"csr", "blocked-float", "blocked-half", "on-the-fly"};
   std::string device, out;
   std::string block_step = "auto", solve_loop = "auto";
-  int repeats = 5, warmup = 1, rows_per_item = 0;
+  int repeats = 5, warmup = 1, rows_per_item = 0, loop_groups = 0;
   double time_step = 0.0;
   bool cpu = false, profile = false;
   app.add_option("networks", files, "Network files (HNNET1)")->required();
@@ -67,8 +67,12 @@ int Run(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "item", "group"}));
   app.add_option("--solve-loop", solve_loop,
                  "Row blocks' solve loop: auto (on the device for one small network on a CPU "
-                 "device), host (a launch per step) or device (one launch of one work-item)")
+                 "device), host (a launch per step) or device (the whole loop in one launch)")
       ->check(CLI::IsMember({"auto", "host", "device"}));
+  app.add_option("--loop-groups", loop_groups,
+                 "Device solve loop: work-groups (threads) stepping the rows, meeting after every "
+                 "step (0 = one per compute unit on a CPU device)")
+      ->check(CLI::Range(0, 1024));
   app.add_option("--out", out, "JSON output");
   CLI11_PARSE(app, argc, argv);
 
@@ -152,6 +156,7 @@ int Run(int argc, char** argv) {
                             {"blocking_reads", last.blocking_reads}};
       if (on_device) run["roofline_fraction"] = roof;
       if (!last.solve_loop.empty()) run["solve_loop"] = last.solve_loop;
+      if (last.solve_groups > 0) run["solve_groups"] = last.solve_groups;
       if (!last.kernel_times.empty()) {
         nlohmann::json commands = nlohmann::json::array();
         for (const hnn::KernelTime& t : last.kernel_times) {
@@ -179,6 +184,7 @@ int Run(int argc, char** argv) {
                            : block_step == "group" ? hnn::OpenClEngineOptions::BlockStep::kRowPerGroup
                                                    : hnn::OpenClEngineOptions::BlockStep::kAuto;
       options.solve_loop = *hnn::ParseSolveLoop(solve_loop);  // checked by the flag
+      options.resident_groups = loop_groups;
       hnn::OpenClEngine engine(*runtime, options);
       std::vector<hnn::SolveReport> reports;
       try {
@@ -195,7 +201,9 @@ int Run(int argc, char** argv) {
       }
       std::string label(hnn::WeightStorageName(storage));
       if (storage == hnn::WeightStorage::kAuto) label += "=" + reports.back().weight_storage;
-      if (reports.back().solve_loop == "device") label += " (loop on device)";
+      if (reports.back().solve_loop == "device") {
+        label += " (device loop x" + std::to_string(reports.back().solve_groups) + ")";
+      }
       record(label, std::move(reports));
     }
   }

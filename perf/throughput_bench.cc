@@ -253,6 +253,7 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
       if (!last.solve.weight_storage.empty()) {
         run["weight_storage"] = last.solve.weight_storage;
         if (!last.solve.solve_loop.empty()) run["solve_loop"] = last.solve.solve_loop;
+        if (last.solve.solve_groups > 0) run["solve_groups"] = last.solve.solve_groups;
         run["launches"] = last.solve.launches;
         run["blocking_reads"] = last.solve.blocking_reads;
         run["launches_per_step"] = steps > 0 ? last.solve.launches / steps : 0.0;

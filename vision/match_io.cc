@@ -72,8 +72,10 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
   json["weight_storage"] = report.solve.weight_storage.empty()
                                ? std::string(hnn::WeightStorageName(options.opencl.storage))
                                : report.solve.weight_storage;
-  // Where the opencl row-block solve looped: "host" or "device" (one launch; docs/engine.md).
+  // Where the opencl row-block solve looped: "host" or "device" (one launch; docs/engine.md),
+  // and the device loop's work-groups.
   if (!report.solve.solve_loop.empty()) json["solve_loop"] = report.solve.solve_loop;
+  if (report.solve.solve_groups > 0) json["solve_groups"] = report.solve.solve_groups;
   json["min_confidence"] = options.min_confidence;
   const auto& c = options.confidence;
   json["confidence_options"] = {{"bias", c.bias},

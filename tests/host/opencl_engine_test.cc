@@ -396,7 +396,8 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
   device.solve_loop = OpenClEngineOptions::SolveLoop::kDevice;
   EnergyOptions energy;
   energy.support_radius_px = 15.0;
-  int cases = 0;
+  int cases = 0, spread_runs = 0;
+  const int units = static_cast<int>(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
   for (std::uint64_t seed : {331u, 332u}) {
     for (int max_per_row : {4, 3, 0}) {
       const MatchingProblem problem = testing::SyntheticDisparityProblem(
@@ -428,6 +429,26 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
               EXPECT_NEAR(a.energy_trace[c], b.energy_trace[c], 1e-5 * EnergyScale(a)) << what;
             }
             EXPECT_EQ(a.activation, b.activation) << what;  // the same step code, bit for bit
+            // Several work-groups stepping their rows between barriers: bit for bit one
+            // group's run. More groups than the device has threads never all run at once:
+            // the loop falls back to one group.
+            for (const int groups : {2, units + 1}) {
+              OpenClEngineOptions spread = device;
+              spread.resident_groups = groups;
+              const SolveReport c =
+                  OpenClEngine(*runtime_, spread).Solve(problem, energy, dynamics);
+              const std::string in = what + " groups " + std::to_string(groups);
+              EXPECT_EQ(c.solve_loop, "device") << in;
+              if (groups > units) {
+                EXPECT_EQ(c.solve_groups, 1) << in;
+              } else if (c.solve_groups > 1) {
+                ++spread_runs;
+              }
+              EXPECT_EQ(b.iterations, c.iterations) << in;
+              EXPECT_EQ(b.converged, c.converged) << in;
+              EXPECT_EQ(b.energy_trace, c.energy_trace) << in;
+              EXPECT_EQ(b.activation, c.activation) << in;
+            }
             EXPECT_EQ(a.potential, b.potential) << what;
             EXPECT_EQ(MatchedNeurons(problem, a), MatchedNeurons(problem, b)) << what;
             // One launch for the loop (and one for the block build), one blocking read for its
@@ -444,6 +465,9 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
     }
   }
   EXPECT_EQ(cases, 72);
+  // Two groups ran side by side at least once (a group gives up only after ~15 ms without
+  // the other).
+  if (units > 1) EXPECT_GT(spread_runs, 0);
 }
 
 // Networks solved together in one host loop, where a frozen network's rows share groups of four
@@ -519,13 +543,50 @@ TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   host.solve_loop = OpenClEngineOptions::SolveLoop::kHost;
   EXPECT_EQ(OpenClEngine(*runtime_, host).Solve(small, energy, DynamicsOptions{}).solve_loop,
             "host");
-  // A network whose step reads more than the limit (dense rows of many slots) stays on the host.
+  // A network whose step reads more than the limit (dense rows of many slots): on one core it
+  // stays on the host; with more, the device loop runs it with a work-group per core, on the
+  // fly too.
   EnergyOptions wide = energy;
   wide.support_radius_px = 60.0;
   const MatchingProblem large = testing::SyntheticDisparityProblem(352, 3000, 0, 4);
   const SolveReport big = automatic.Solve(large, wide, DynamicsOptions{});
   ASSERT_GT(big.step_bytes, 2.0 * kResidentMaxStepBytes);
-  EXPECT_EQ(big.solve_loop, "host");
+  const int units = static_cast<int>(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+  if (units == 1) {
+    EXPECT_EQ(big.solve_loop, "host");
+  } else {
+    EXPECT_EQ(big.solve_loop, "device");
+    EXPECT_GE(big.solve_groups, 1);
+    EXPECT_LE(big.solve_groups, units);
+    const MatchingProblem medium = testing::SyntheticDisparityProblem(353, 400, 0, 4);
+    OpenClEngineOptions fly{WeightStorage::kOnTheFly, 0};
+    EXPECT_EQ(OpenClEngine(*runtime_, fly).Solve(medium, energy, DynamicsOptions{}).solve_loop,
+              "device");
+  }
+}
+
+// The device loop's rows per work-group: cuts at multiples of four rows, about equal work.
+TEST(ResidentGroupRows, CutsAtQuadsWithEqualWork) {
+  // 1,000 rows; the first 500 have 30 neighbour blocks each, the rest 10.
+  std::vector<int> offsets{0};
+  for (int i = 0; i < 1000; ++i) offsets.push_back(offsets.back() + (i < 500 ? 30 : 10));
+  for (const int groups : {1, 2, 3, 7}) {
+    const std::vector<int> cuts = ResidentGroupRows(offsets, 1000, groups);
+    ASSERT_EQ(cuts.size(), static_cast<std::size_t>(groups) + 1);
+    EXPECT_EQ(cuts.front(), 0);
+    EXPECT_EQ(cuts.back(), 1000);
+    const double total = offsets.back() + 8.0 * 1000;
+    for (int g = 0; g < groups; ++g) {
+      EXPECT_EQ(cuts[g] % 4, 0);
+      EXPECT_LT(cuts[g], cuts[g + 1]);
+      const double work = offsets[cuts[g + 1]] - offsets[cuts[g]] + 8.0 * (cuts[g + 1] - cuts[g]);
+      EXPECT_NEAR(work, total / groups, 4 * 38.0) << groups << " groups, group " << g;
+    }
+  }
+  EXPECT_EQ(ResidentGroupRows(offsets, 1000, 2)[1], 372);  // 38 x 372 = 14,136 of 28,000
+  // More groups than quads of rows: one per quad; no rows, one empty group.
+  EXPECT_EQ(ResidentGroupRows({0, 1, 2, 3, 4, 5, 6}, 6, 4), (std::vector<int>{0, 4, 6}));
+  EXPECT_EQ(ResidentGroupRows({0}, 0, 2), (std::vector<int>{0, 0}));
 }
 
 TEST(ResidentLoopLimit, ShrinksWithTheCores) {
