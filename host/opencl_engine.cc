@@ -1,7 +1,6 @@
 #include "host/opencl_engine.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -23,19 +22,6 @@ constexpr int kLocalSize = 64;  // power of two, for segment_sum; PoCL vectorise
 // The fused step kernels' `check` argument (STEP_BLOCKED_PARAMS in kernels/hopfield.cl: the
 // network's 20, the state's 5, decisions and changes); the group step's local buffer follows.
 constexpr cl_uint kStepCheckArg = 27;
-// solve_blocked_resident's group_rows argument (the network's 20, the states' 4, row energies,
-// decisions, changes, the stop rule's 6, energy trace and outcome).
-constexpr cl_uint kResidentGroupRowsArg = 35;
-// How many spins (about 0.4 ns each on the 2-core VM) a group of the device loop waits for the
-// others to start before it gives up (group_rendezvous): about 15 ms, where PoCL's threads wake
-// in tens of microseconds.
-constexpr cl_long kGroupPatience = cl_long{1} << 25;
-// Device loops in this process whose groups did not all run at once; from this many on, the
-// device loop starts with one group.
-constexpr int kGroupFailuresToGiveUp = 2;
-std::atomic<int> group_failures_{0};
-bool GroupsFailedToMeet() { return group_failures_.load() >= kGroupFailuresToGiveUp; }
-
 cl::NDRange RoundedRange(std::size_t n) {
   const std::size_t groups = (n + kLocalSize - 1) / kLocalSize;
   return cl::NDRange(std::max<std::size_t>(groups, 1) * kLocalSize);
@@ -124,8 +110,7 @@ double ResidentMaxStepBytes(unsigned compute_units) {
   return kResidentMaxStepBytes * c / (2.0 * (c - 1.0));
 }
 
-std::vector<int> ResidentGroupRows(const std::vector<int>& neighbour_offsets, int n_rows,
-                                   int groups) {
+std::vector<int> ResidentRanges(const std::vector<int>& neighbour_offsets, int n_rows, int ranges) {
   // A row's cost in blocks: its neighbour blocks, and its finish (the uniqueness term, the
   // activation's tanh, the energy term: about eight blocks' time on the 2-core VM).
   constexpr double kRowFinish = 8.0;
@@ -135,12 +120,12 @@ std::vector<int> ResidentGroupRows(const std::vector<int>& neighbour_offsets, in
            kRowFinish * i;
   };
   const int quads = (std::max(n_rows, 0) + 3) / 4;
-  groups = std::clamp(groups, 1, std::max(quads, 1));
+  ranges = std::clamp(ranges, 1, std::max(quads, 1));
   const double total = cost_before(n_rows);
   std::vector<int> cuts{0};
-  for (int g = 1; g < groups; ++g) {
-    // The first multiple of four rows whose cost before it reaches g / groups of the total.
-    const double target = total * g / groups;
+  for (int g = 1; g < ranges; ++g) {
+    // The first multiple of four rows whose cost before it reaches g / ranges of the total.
+    const double target = total * g / ranges;
     int quad = cuts.back() / 4;
     while (quad < quads && cost_before(std::min(4 * quad, n_rows)) < target) ++quad;
     const int cut = std::min(4 * quad, n_rows);
@@ -575,9 +560,7 @@ class DeviceNetwork {
     // The device loop's work-groups: one per core, each with its share of the rows.
     int groups = engine.resident_groups;
     if (groups <= 0) {
-      groups = gpu || GroupsFailedToMeet()
-                   ? 1
-                   : std::clamp(L.n_rows / kResidentRowsPerGroup, 1, static_cast<int>(units));
+      groups = gpu ? 1 : std::clamp(L.n_rows / kResidentRowsPerGroup, 1, static_cast<int>(units));
     }
     // kAuto on a CPU device: with a group per core the device loop steps as the host loop's
     // launches do, without their launch and round trips, so it takes every network it can
@@ -595,19 +578,19 @@ class DeviceNetwork {
       const auto n_checks = static_cast<std::size_t>(
           std::max(dynamics.max_steps, 0) / std::max(dynamics.energy_interval, 1) + 2);
       energy_trace_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * n_checks);
-      outcome_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 5);
+      outcome_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
       resident_checks_ = n_checks;
-      std::vector<int> group_rows =
-          ResidentGroupRows(L.feature_neighbour_offsets, L.n_rows, groups);
-      resident_groups_ = static_cast<int>(group_rows.size()) - 1;
-      resident_groups_automatic_ = engine.resident_groups <= 0;
-      group_rows_ = MakeBuffer(context, CL_MEM_READ_ONLY, group_rows);
-      // Two copies of the row energies (by step parity) and of each group's decision changes.
-      resident_energy_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * 2 * rows);
-      resident_changes_ =
-          cl::Buffer(context, CL_MEM_READ_WRITE,
-                     sizeof(cl_int) * 2 * static_cast<std::size_t>(resident_groups_));
-      group_sync_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 2);
+      resident_groups_ = groups;
+      // The ranges of rows the groups take (kResidentRangesPerGroup each).
+      std::vector<int> range_rows =
+          ResidentRanges(L.feature_neighbour_offsets, L.n_rows, groups * kResidentRangesPerGroup);
+      resident_ranges_ = static_cast<int>(range_rows.size()) - 1;
+      range_rows_ = MakeBuffer(context, CL_MEM_READ_ONLY, range_rows);
+      range_changes_ = cl::Buffer(context, CL_MEM_READ_WRITE,
+                                  sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
+      range_claims_ = cl::Buffer(context, CL_MEM_READ_WRITE,
+                                 sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
+      loop_control_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
       const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
       resident_loop_ = cl::Kernel(program, "solve_blocked_resident");
       SetArgs(resident_loop_, static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
@@ -615,13 +598,14 @@ class DeviceNetwork {
               feature_point_, params, slot_bias_, slot_column_, column_sums_, two_B, two_C,
               network_of_row_, active_, static_cast<cl_float>(dynamics.time_step),
               static_cast<cl_float>(1.0 / dynamics.tau), static_cast<cl_float>(dynamics.alpha),
-              V_state_[0], u_state_[0], V_state_[1], u_state_[1], resident_energy_, decisions_,
-              resident_changes_, static_cast<cl_int>(dynamics.max_steps),
+              V_state_[0], u_state_[0], V_state_[1], u_state_[1], row_energy_, decisions_,
+              range_changes_, static_cast<cl_int>(dynamics.max_steps),
               static_cast<cl_int>(std::max(dynamics.energy_interval, 1)),
               static_cast<cl_int>(dynamics.stable_checks), static_cast<cl_int>(by_decisions),
               static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
               static_cast<cl_float>(dynamics.decision_tolerance * std::max(1, L.n_rows)),
-              energy_trace_, outcome_, group_rows_, group_sync_, kGroupPatience);
+              energy_trace_, outcome_, range_rows_, static_cast<cl_int>(resident_ranges_),
+              range_claims_, loop_control_);
     }
   }
 
@@ -636,30 +620,19 @@ class DeviceNetwork {
     int groups = 1;                   // the work-groups that ran it
   };
   // The whole solve in one launch; then one blocking read (the trace behind the outcome).
-  // With several groups that could not all run at once (outcome[4]: nothing was touched), it
-  // runs again with one group, and after kGroupFailuresToGiveUp such launches of automatic
-  // groups in this process the device loop takes one group from the start
-  // (GroupsFailedToMeet).
   ResidentOutcome SolveResident() {
     std::vector<float> trace(resident_checks_, 0.0f);
-    cl_int outcome[5] = {0, 0, 0, 0, 0};
-    for (;;) {
-      queue_.enqueueFillBuffer(group_sync_, cl_int{0}, 0, sizeof(cl_int) * 2);
-      Launch(resident_loop_, cl::NDRange(static_cast<std::size_t>(resident_groups_)),
-             cl::NDRange(1));
-      ++launches_;
-      queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(),
-                               trace.data(), nullptr, Record("read energy trace"));
-      queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
-                               Record("read outcome"));
-      ++blocking_reads_;
-      if (outcome[4] == 0 || resident_groups_ == 1) break;
-      if (resident_groups_automatic_) group_failures_.fetch_add(1);
-      resident_groups_ = 1;
-      std::vector<int> all_rows{0, net_.layout.n_rows};
-      group_rows_ = MakeBuffer(runtime_.context(), CL_MEM_READ_ONLY, all_rows);
-      resident_loop_.setArg(kResidentGroupRowsArg, group_rows_);
-    }
+    cl_int outcome[4] = {0, 0, 0, 0};
+    queue_.enqueueFillBuffer(loop_control_, cl_int{0}, 0, sizeof(cl_int) * 4);
+    queue_.enqueueFillBuffer(range_claims_, cl_int{-1}, 0,
+                             sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
+    Launch(resident_loop_, cl::NDRange(static_cast<std::size_t>(resident_groups_)), cl::NDRange(1));
+    ++launches_;
+    queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(), trace.data(),
+                             nullptr, Record("read energy trace"));
+    queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
+                             Record("read outcome"));
+    ++blocking_reads_;
     ResidentOutcome result;
     result.groups = resident_groups_;
     result.steps = outcome[0];
@@ -933,9 +906,8 @@ class DeviceNetwork {
   // The solve loop on the device (SolveLoop::kDevice).
   bool resident_ = false;
   std::size_t resident_checks_ = 0;
-  int resident_groups_ = 1;
-  bool resident_groups_automatic_ = true;  // not OpenClEngineOptions::resident_groups
-  cl::Buffer energy_trace_, outcome_, group_rows_, resident_energy_, resident_changes_, group_sync_;
+  int resident_groups_ = 1, resident_ranges_ = 1;
+  cl::Buffer energy_trace_, outcome_, range_rows_, range_changes_, range_claims_, loop_control_;
   cl::Kernel resident_loop_;
   // kDecisions stop rule.
   std::vector<int> rows_per_network_;

@@ -25,6 +25,9 @@ inline constexpr double kResidentMaxStepBytes = 2.0e6;
 
 /// SolveLoop::kDevice with automatic groups gives each work-group at least this many rows.
 inline constexpr int kResidentRowsPerGroup = 128;
+/// The device loop cuts the rows into this many ranges per work-group (the groups take them
+/// step by step; solve_blocked_resident in kernels/hopfield.cl).
+inline constexpr int kResidentRangesPerGroup = 8;
 
 /// How the OpenCL engine holds the compatibility weights (docs/engine.md, "Weight storage").
 enum class WeightStorage {
@@ -66,10 +69,10 @@ struct OpenClEngineOptions {
   enum class SolveLoop { kAuto, kHost, kDevice };
   SolveLoop solve_loop = SolveLoop::kAuto;
   /// The device loop's work-groups (one work-item each, a thread of its own on a CPU device),
-  /// each stepping its share of the rows, all meeting at a barrier after every step (kernel
-  /// solve_blocked_resident). 0 = automatic: one per compute unit on a CPU device, fewer for
-  /// networks of under kResidentRowsPerGroup rows a group, one on a GPU. Where the groups do
-  /// not all run at once (PoCL with one thread), the solve falls back to one group.
+  /// which take the ranges of rows of each step in turn (kernel solve_blocked_resident). 0 =
+  /// automatic: one per compute unit on a CPU device, fewer for networks of under
+  /// kResidentRowsPerGroup rows a group, one on a GPU. Any count gives the same result, bit
+  /// for bit; groups that never run at once (PoCL with one thread) are harmless.
   int resident_groups = 0;
   /// Time every kernel and convergence-check read on the device (a queue with
   /// CL_QUEUE_PROFILING_ENABLE, one event per command): SolveReport::kernel_times, `bench
@@ -116,12 +119,11 @@ class OpenClEngine {
 /// "auto", "host", "device" <-> OpenClEngineOptions::SolveLoop (the --solve-loop flags).
 std::optional<OpenClEngineOptions::SolveLoop> ParseSolveLoop(std::string_view name);
 
-/// The device loop's rows per work-group: `groups` + 1 cuts of [0, n_rows) at multiples of four
-/// rows (four 4-slot rows finish as one vector) that give the groups about equal work, a row
-/// costing its neighbour blocks (neighbour_offsets[i + 1] - neighbour_offsets[i]) plus eight
-/// for its finish. Fewer groups when the rows do not go round.
-std::vector<int> ResidentGroupRows(const std::vector<int>& neighbour_offsets, int n_rows,
-                                   int groups);
+/// The device loop's ranges of rows: `ranges` + 1 cuts of [0, n_rows) at multiples of four rows
+/// (four 4-slot rows finish as one vector) of about equal work, a row costing its neighbour
+/// blocks (neighbour_offsets[i + 1] - neighbour_offsets[i]) plus eight for its finish. Fewer
+/// ranges when the rows do not go round.
+std::vector<int> ResidentRanges(const std::vector<int>& neighbour_offsets, int n_rows, int ranges);
 
 /// SolveLoop::kAuto's limit on a CPU device of `compute_units` cores: kResidentMaxStepBytes on
 /// two, less on more (the host loop's steps spread over the cores; unlimited on one).

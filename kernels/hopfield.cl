@@ -691,131 +691,99 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
   step_rows(first, min(n_rows, first + rows_per_item), STEP_BLOCKED_ARGS);
 }
 
-// A barrier across the work-groups of one launch, for solve_blocked_resident on a CPU device,
-// where each work-group is one work-item on a thread of its own. OpenCL 1.2 does not promise
-// that the groups of a launch run at the same time (PoCL with one thread runs them one after
-// the other), so the first barrier is a rendezvous that gives up: a group that has waited
-// `patience` spins tries to mark the generation word aborted (-1), and the last group to
-// arrive tries to advance it; atomic_cmpxchg lets exactly one of the two win, and every group
-// reads the outcome. Returns 1 when all groups met, 0 when the launch is aborted (no group
-// has touched the state yet). sync[0] counts the arrivals, sync[1] is the generation; both
-// start at 0.
-int group_rendezvous(volatile __global int* sync, const int groups, const long patience) {
-  const int generation = sync[1];
-  if (generation == -1) return 0;  // a group gave up before this one started
-  if (atomic_inc(&sync[0]) == groups - 1) {
-    sync[0] = 0;
-    mem_fence(CLK_GLOBAL_MEM_FENCE);
-    atomic_cmpxchg(&sync[1], generation, generation + 1);
-  } else {
-    long spins = 0;
-    while (sync[1] == generation) {
-      if (++spins > patience) atomic_cmpxchg(&sync[1], generation, -1);
-    }
-  }
-  mem_fence(CLK_GLOBAL_MEM_FENCE);
-  return sync[1] != -1;
-}
-
-// The barrier between steps, once all groups have met (group_rendezvous): every group runs on
-// a thread of its own, so each arrives, and the wait needs no limit (sense by generation).
-void group_barrier(volatile __global int* sync, const int groups) {
-  mem_fence(CLK_GLOBAL_MEM_FENCE);
-  const int generation = sync[1];
-  if (atomic_inc(&sync[0]) == groups - 1) {
-    sync[0] = 0;
-    mem_fence(CLK_GLOBAL_MEM_FENCE);
-    atomic_inc(&sync[1]);
-  } else {
-    while (sync[1] == generation) {
-    }
-  }
-  mem_fence(CLK_GLOBAL_MEM_FENCE);
-}
-
-// The whole blocked solve in one launch (OpenClEngineOptions::SolveLoop::kDevice: small
-// networks on a CPU device). It runs SolveBlocked's host loop itself - the fused step of every
-// row as neuron_step_blocked does it, and at every `interval`-th step (and at max_steps) the
-// energy and the stop rule (host/opencl_engine.cc, CheckConvergence; kDecisions counted by the
-// step's decide_row) - so the solve costs one launch and one read instead of a launch per step
-// and a host round trip per check. On the 2-core CPU device those cost about as much as the
-// step itself on a 2,000-feature network, whose blocks sit in the cores' caches
-// (docs/engine.md). One network (no batch), no column uniqueness (no column sums between
-// steps). State buffers 0 and 1 as the host loop's parities; `decisions` starts at -2.
+// The whole blocked solve in one launch (OpenClEngineOptions::SolveLoop::kDevice: networks on a
+// CPU device). It runs SolveBlocked's host loop itself - the fused step of every row as
+// neuron_step_blocked does it, and at every `interval`-th step (and at max_steps) the energy and
+// the stop rule (host/opencl_engine.cc, CheckConvergence; kDecisions counted by the step's
+// decide_row) - so the solve costs one launch and one read instead of a launch per step and a
+// host round trip per check. On the 2-core CPU device those cost about as much as the step
+// itself on a 2,000-feature network, whose blocks sit in the cores' caches (docs/engine.md).
+// One network (no batch), no column uniqueness (no column sums between steps). State buffers 0
+// and 1 as the host loop's parities; `decisions` starts at -2.
 //
-// Work-groups of one work-item each; group g steps rows [group_rows[g], group_rows[g + 1])
-// (the host cuts them at multiples of four rows with about equal numbers of blocks) and the
-// groups meet at a barrier after every step (group_barrier: about 0.15 us on the 2-core VM),
-// so each step is still one Jacobi step of the whole network. Every group then adds all row
-// energies in row order and all groups' decision changes, so all take the same stop decision,
-// and the result is bit for bit that of one group. row_energy holds two copies (by the step's
-// parity) and changes two per group (by the check's parity), so that a group already in the
-// next step never overwrites what another is still adding. If the groups never all run at
-// once (group_rendezvous gives up), nothing is touched and outcome[4] = 1: the host runs the
-// solve again with one group. energy_trace[c] = E at check c (E as the sum of row_energy in
-// row order, where segment_sum adds a tree: equal up to float rounding); outcome = (steps,
-// converged, stop parity, checks, aborted).
+// The rows are cut into n_ranges ranges (range_rows: cuts at multiples of four rows, about equal
+// work). Work-groups of one work-item each (a thread each on a CPU device) take the ranges of the
+// current step by claiming them: claims[r] holds the last step range r was taken for, and
+// atomic_cmpxchg(claims[r], step - 1, step) lets exactly one group take it. Each group tries its
+// own share of the ranges first (so a range stays in one core's cache from step to step), then
+// the others'. The group that finishes a step's last range does the step's bookkeeping - at a
+// check the energy (the row energies in row order), the decision changes and the stop rule -
+// and moves control[0] to the next step (or to -1: stop); the others wait for that. So each step
+// is one Jacobi step of the whole network, whoever computes a range computes it the same way,
+// and the result is bit for bit that of one group. No group waits for another to arrive: a
+// group whose thread is taken off its core holds up a step only while it holds a range, and the
+// others take its ranges meanwhile (with a barrier instead, one core kept busy by another
+// process made a 2 ms solve take 90-200 ms). Groups that never run at once (PoCL with one
+// thread) do no harm: a group that starts after the stop finds control[0] = -1.
+// control = (step, ranges finished this step, stable checks, checks), all 0 at the start;
+// claims start at -1. energy_trace[c] = E at check c (E as the sum of row_energy in row order,
+// where segment_sum adds a tree: equal up to float rounding); outcome = (steps, converged, stop
+// parity, checks).
 __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,
                                      __global float* V1, __global float* u1,
                                      __global float* row_energy, __global int* decisions,
-                                     __global int* changes, const int max_steps,
+                                     __global int* range_changes, const int max_steps,
                                      const int interval, const int stable_checks,
                                      const int by_decisions, const float energy_tolerance,
                                      const float decision_tolerance,
                                      __global float* energy_trace, __global int* outcome,
-                                     __global const int* group_rows,
-                                     volatile __global int* sync, const long patience) {
-  const int g = get_group_id(0);
-  const int groups = get_num_groups(0);
+                                     __global const int* range_rows, const int n_ranges,
+                                     volatile __global int* claims,
+                                     volatile __global int* control) {
   if (get_local_id(0) != 0) return;
-  if (groups > 1 && !group_rendezvous(sync, groups, patience)) {
-    if (g == 0) outcome[4] = 1;
-    return;
-  }
-  const int first = group_rows[g], last = group_rows[g + 1];
-  int parity = 0, stable = 0, checks = 0;
-  float last_E = 0.0f;
-  for (int step = 0;; ++step) {
+  const int own = (int)((long)n_ranges * get_group_id(0) / get_num_groups(0));
+  for (;;) {
+    const int step = control[0];
+    if (step < 0) return;
+    const int parity = step & 1;
     __global float* V_in = parity ? V1 : V0;
     __global float* u_in = parity ? u1 : u0;
     __global float* V_out = parity ? V0 : V1;
     __global float* u_out = parity ? u0 : u1;
-    __global float* energy = row_energy + (step & 1) * n_rows;
-    __global int* changed = changes + (checks & 1) * groups;
     const int check = step % interval == 0 || step == max_steps;
-    // The rows' decisions at u_in are made inside the step (decide_row) at a check; a single
-    // network, so decide_row counts into changed[g + network_of_row] = changed[g].
-    if (check) changed[g] = 0;
-    step_rows(first, last, STEP_NETWORK_ARGS, V_in, u_in, V_out, u_out, energy, decisions,
-              changed + g, check && by_decisions);
-    if (groups > 1) group_barrier(sync, groups);
-    if (!check) {
-      parity = 1 - parity;
-      continue;
-    }
-    float E = 0.0f;
-    for (int i = 0; i < n_rows; ++i) E += energy[i];
-    int n_changed = 0;
-    for (int h = 0; h < groups; ++h) n_changed += changed[h];
-    if (g == 0) energy_trace[checks] = E;
-    ++checks;
-    if (step > 0) {
-      const int settled = by_decisions ? (float)n_changed <= decision_tolerance
-                                       : fabs(E - last_E) <= energy_tolerance;
-      stable = settled ? stable + 1 : 0;
-    }
-    last_E = E;
-    if (stable >= stable_checks || step >= max_steps) {
-      if (g == 0) {
-        outcome[0] = step;
-        outcome[1] = stable >= stable_checks;
-        outcome[2] = parity;
-        outcome[3] = checks;
-        outcome[4] = 0;
+    for (int k = 0; k < n_ranges; ++k) {
+      const int r = (own + k) % n_ranges;
+      if (atomic_cmpxchg(&claims[r], step - 1, step) != step - 1) continue;  // taken
+      // The rows' decisions at u_in are made inside the step (decide_row) at a check; a single
+      // network, so decide_row counts into range_changes[r + network_of_row] = range_changes[r].
+      range_changes[r] = 0;
+      step_rows(range_rows[r], range_rows[r + 1], STEP_NETWORK_ARGS, V_in, u_in, V_out, u_out,
+                row_energy, decisions, range_changes + r, check && by_decisions);
+      mem_fence(CLK_GLOBAL_MEM_FENCE);
+      if (atomic_inc(&control[1]) != n_ranges - 1) continue;
+      // The step's last range: its bookkeeping, then the next step.
+      control[1] = 0;
+      int next = step + 1;
+      if (check) {
+        float E = 0.0f;
+        for (int i = 0; i < n_rows; ++i) E += row_energy[i];
+        int n_changed = 0;
+        for (int h = 0; h < n_ranges; ++h) n_changed += range_changes[h];
+        const int checks = control[3];
+        int stable = control[2];
+        if (step > 0) {
+          const int settled = by_decisions ? (float)n_changed <= decision_tolerance
+                                           : fabs(E - energy_trace[checks - 1]) <= energy_tolerance;
+          stable = settled ? stable + 1 : 0;
+        }
+        energy_trace[checks] = E;
+        control[2] = stable;
+        control[3] = checks + 1;
+        if (stable >= stable_checks || step >= max_steps) {
+          outcome[0] = step;
+          outcome[1] = stable >= stable_checks;
+          outcome[2] = parity;
+          outcome[3] = checks + 1;
+          next = -1;
+        }
       }
-      return;
+      mem_fence(CLK_GLOBAL_MEM_FENCE);
+      control[0] = next;
+      break;
     }
-    parity = 1 - parity;
+    while (control[0] == step) {
+    }
+    mem_fence(CLK_GLOBAL_MEM_FENCE);
   }
 }
 
