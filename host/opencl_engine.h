@@ -18,9 +18,10 @@ namespace hnnstereo::hnn {
 
 /// Work-items per row of the GPU's blocked step (OpenClEngineOptions::BlockStep): one warp.
 inline constexpr int kStepGroup = 32;
-/// SolveLoop::kAuto runs the loop on a 2-core CPU device for steps that read at most this many
-/// bytes (the step-bytes model of SolveReport::step_bytes): the crossover measured there lies
-/// between 1.5 and 2.4 MB (docs/engine.md).
+/// SolveLoop::kAuto runs the loop with one work-group (one core) on a 2-core CPU device for steps
+/// that read at most this many bytes (the step-bytes model of SolveReport::step_bytes): the
+/// crossover with the host loop measured there lies between 1.5 and 2.4 MB (docs/engine.md).
+/// With a group per core the device loop takes every size.
 inline constexpr double kResidentMaxStepBytes = 2.0e6;
 
 /// SolveLoop::kDevice with automatic groups gives each work-group at least this many rows.
@@ -60,12 +61,13 @@ struct OpenClEngineOptions {
   enum class BlockStep { kAuto, kRowPerItem, kRowPerGroup };
   BlockStep block_step = BlockStep::kAuto;
   /// Row blocks: where the solve loop runs. kHost: a launch per step and a host round trip per
-  /// convergence check (SolveBlocked). kDevice: the whole loop in one launch of one work-item
-  /// (kernel solve_blocked_resident; one network without column uniqueness, else kHost). kAuto:
-  /// kDevice on a CPU device for a single network of stored blocks whose step reads at most
-  /// ResidentMaxStepBytes(its compute units) (the blocks stay in one core's cache, and the
-  /// launches and round trips cost about what the steps do: docs/engine.md), else kHost. Never on a
-  /// GPU by default: one work-item would leave the card idle.
+  /// convergence check (SolveBlocked). kDevice: the whole loop in one launch of resident_groups
+  /// work-groups (kernel solve_blocked_resident; one network without column uniqueness, else
+  /// kHost). kAuto: kDevice on a CPU device for a single network without column uniqueness
+  /// when it gets two groups or more (the steps spread over the cores as the host loop's
+  /// launches do, without their launches and round trips: docs/engine.md); with one group only
+  /// for stored blocks whose step reads at most ResidentMaxStepBytes(its compute units); else
+  /// kHost. Never on a GPU by default: a work-item a core would leave the card idle.
   enum class SolveLoop { kAuto, kHost, kDevice };
   SolveLoop solve_loop = SolveLoop::kAuto;
   /// The device loop's work-groups (one work-item each, a thread of its own on a CPU device),
