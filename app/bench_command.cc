@@ -226,8 +226,8 @@ void AddBenchCommand(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "host", "device"}))
       ->capture_default_str();
   cmd->add_option("--loop-groups", args->loop_groups,
-                  "Device solve loop: work-groups (threads) that step the rows and meet after "
-                  "every step (0 = one per compute unit on a CPU device)")
+                  "Device solve loop: work-groups (threads) that take the ranges of rows of "
+                  "each step (0 = one per compute unit on a CPU device, one on a GPU)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   cmd->add_flag("--quick", args->quick, "Sizes 500 and 5000, 3 repeats");

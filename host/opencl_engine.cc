@@ -22,6 +22,7 @@ constexpr int kLocalSize = 64;  // power of two, for segment_sum; PoCL vectorise
 // The fused step kernels' `check` argument (STEP_BLOCKED_PARAMS in kernels/hopfield.cl: the
 // network's 20, the state's 5, decisions and changes); the group step's local buffer follows.
 constexpr cl_uint kStepCheckArg = 27;
+
 cl::NDRange RoundedRange(std::size_t n) {
   const std::size_t groups = (n + kLocalSize - 1) / kLocalSize;
   return cl::NDRange(std::max<std::size_t>(groups, 1) * kLocalSize);

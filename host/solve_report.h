@@ -43,8 +43,8 @@ struct SolveReport {
   /// OpenCL row blocks: where the solve loop ran ("host": a launch per step and a round trip
   /// per check; "device": one launch, OpenClEngineOptions::SolveLoop); empty otherwise.
   std::string solve_loop;
-  /// The device loop's work-groups (OpenClEngineOptions::resident_groups, after any fallback to
-  /// one); 0 for the host loop.
+  /// The device loop's work-groups (OpenClEngineOptions::resident_groups, as chosen); 0 for
+  /// the host loop.
   int solve_groups = 0;
   double step_bytes = 0.0;
   int launches = 0;

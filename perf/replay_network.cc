@@ -70,8 +70,8 @@ int Run(int argc, char** argv) {
                  "device), host (a launch per step) or device (the whole loop in one launch)")
       ->check(CLI::IsMember({"auto", "host", "device"}));
   app.add_option("--loop-groups", loop_groups,
-                 "Device solve loop: work-groups (threads) stepping the rows, meeting after every "
-                 "step (0 = one per compute unit on a CPU device)")
+                 "Device solve loop: work-groups (threads) that take the ranges of rows of each "
+                 "step (0 = one per compute unit on a CPU device, one on a GPU)")
       ->check(CLI::Range(0, 1024));
   app.add_option("--out", out, "JSON output");
   CLI11_PARSE(app, argc, argv);
