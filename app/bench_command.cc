@@ -221,7 +221,7 @@ void AddBenchCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--solve-loop", args->solve_loop,
                   "Where the opencl row-block solve loops: auto (in one launch on a CPU device "
-                  "for one network without column sums, else a launch per step), host or device "
+                  "for one network, else a launch per step), host or device "
                   "(docs/engine.md)")
       ->check(CLI::IsMember({"auto", "host", "device"}))
       ->capture_default_str();

@@ -554,9 +554,9 @@ class DeviceNetwork {
     column_range_ = RoundedRange(static_cast<std::size_t>(std::max(L.n_columns, 1)));
     segment_range_ = cl::NDRange(static_cast<std::size_t>(n_networks()) * kLocalSize);
 
-    // The solve loop on the device (OpenClEngineOptions::SolveLoop): one network, no column
-    // sums between steps, the per-item step (not the GPU's group step).
-    const bool can_reside = n_networks() == 1 && !L.column_uniqueness && !row_per_group;
+    // The solve loop on the device (OpenClEngineOptions::SolveLoop): one network, the per-item
+    // step (not the GPU's group step).
+    const bool can_reside = n_networks() == 1 && !row_per_group;
     const auto units = runtime_.device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>();
     // The device loop's work-groups: one per core, each with its share of the rows.
     int groups = engine.resident_groups;
@@ -592,6 +592,17 @@ class DeviceNetwork {
       range_claims_ = cl::Buffer(context, CL_MEM_READ_WRITE,
                                  sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
       loop_control_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
+      // With column uniqueness, ranges of columns for the column sums of every step.
+      std::vector<int> column_ranges{0, 0};
+      if (L.column_uniqueness && L.n_columns > 0) {
+        column_ranges =
+            ResidentRanges(L.column_offsets, L.n_columns, groups * kResidentRangesPerGroup);
+      }
+      resident_column_ranges_ =
+          L.column_uniqueness ? static_cast<int>(column_ranges.size()) - 1 : 0;
+      column_range_columns_ = MakeBuffer(context, CL_MEM_READ_ONLY, column_ranges);
+      column_claims_ =
+          cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * column_ranges.size());
       const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
       resident_loop_ = cl::Kernel(program, "solve_blocked_resident");
       SetArgs(resident_loop_, static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
@@ -606,7 +617,8 @@ class DeviceNetwork {
               static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
               static_cast<cl_float>(dynamics.decision_tolerance * std::max(1, L.n_rows)),
               energy_trace_, outcome_, range_rows_, static_cast<cl_int>(resident_ranges_),
-              range_claims_, loop_control_);
+              range_claims_, loop_control_, column_offsets_, column_slots_, column_sums_,
+              column_range_columns_, static_cast<cl_int>(resident_column_ranges_), column_claims_);
     }
   }
 
@@ -627,6 +639,10 @@ class DeviceNetwork {
     queue_.enqueueFillBuffer(loop_control_, cl_int{0}, 0, sizeof(cl_int) * 4);
     queue_.enqueueFillBuffer(range_claims_, cl_int{-1}, 0,
                              sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
+    if (resident_column_ranges_ > 0) {
+      queue_.enqueueFillBuffer(column_claims_, cl_int{-1}, 0,
+                               sizeof(cl_int) * static_cast<std::size_t>(resident_column_ranges_));
+    }
     Launch(resident_loop_, cl::NDRange(static_cast<std::size_t>(resident_groups_)), cl::NDRange(1));
     ++launches_;
     queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(), trace.data(),
@@ -907,8 +923,9 @@ class DeviceNetwork {
   // The solve loop on the device (SolveLoop::kDevice).
   bool resident_ = false;
   std::size_t resident_checks_ = 0;
-  int resident_groups_ = 1, resident_ranges_ = 1;
-  cl::Buffer energy_trace_, outcome_, range_rows_, range_changes_, range_claims_, loop_control_;
+  int resident_groups_ = 1, resident_ranges_ = 1, resident_column_ranges_ = 0;
+  cl::Buffer energy_trace_, outcome_, range_rows_, range_changes_, range_claims_, loop_control_,
+      column_range_columns_, column_claims_;
   cl::Kernel resident_loop_;
   // kDecisions stop rule.
   std::vector<int> rows_per_network_;

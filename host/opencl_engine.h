@@ -62,9 +62,9 @@ struct OpenClEngineOptions {
   BlockStep block_step = BlockStep::kAuto;
   /// Row blocks: where the solve loop runs. kHost: a launch per step and a host round trip per
   /// convergence check (SolveBlocked). kDevice: the whole loop in one launch of resident_groups
-  /// work-groups (kernel solve_blocked_resident; one network without column uniqueness, else
-  /// kHost). kAuto: kDevice on a CPU device for a single network without column uniqueness
-  /// when it gets two groups or more (the steps spread over the cores as the host loop's
+  /// work-groups (kernel solve_blocked_resident, column sums included; one network, else
+  /// kHost). kAuto: kDevice on a CPU device for a single network when it gets two groups or
+  /// more (the steps spread over the cores as the host loop's
   /// launches do, without their launches and round trips: docs/engine.md); with one group only
   /// for stored blocks whose step reads at most ResidentMaxStepBytes(its compute units); else
   /// kHost. Never on a GPU by default: a work-item a core would leave the card idle.

@@ -698,8 +698,10 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // decide_row) - so the solve costs one launch and one read instead of a launch per step and a
 // host round trip per check. On the 2-core CPU device those cost about as much as the step
 // itself on a 2,000-feature network, whose blocks sit in the cores' caches (docs/engine.md).
-// One network (no batch), no column uniqueness (no column sums between steps). State buffers 0
-// and 1 as the host loop's parities; `decisions` starts at -2.
+// One network (no batch). State buffers 0 and 1 as the host loop's parities; `decisions` starts
+// at -2. With column uniqueness (n_column_ranges > 0) every step first sums the columns of V_in
+// (column_sums_blocked's sums, in ranges of columns claimed as the rows' are), then steps the
+// rows; control[0] then counts these phases, two a step.
 //
 // The rows are cut into n_ranges ranges (range_rows: cuts at multiples of four rows, about equal
 // work). Work-groups of one work-item each (a thread each on a CPU device) take the ranges of the
@@ -715,8 +717,8 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // others take its ranges meanwhile (with a barrier instead, one core kept busy by another
 // process made a 2 ms solve take 90-200 ms). Groups that never run at once (PoCL with one
 // thread) do no harm: a group that starts after the stop finds control[0] = -1.
-// control = (step, ranges finished this step, stable checks, checks), all 0 at the start;
-// claims start at -1. energy_trace[c] = E at check c (E as the sum of row_energy in row order,
+// control = (step or phase, ranges finished in it, stable checks, checks), all 0 at the start;
+// claims and column_claims start at -1. energy_trace[c] = E at check c (E as the sum of row_energy in row order,
 // where segment_sum adds a tree: equal up to float rounding); outcome = (steps, converged, stop
 // parity, checks).
 __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,
@@ -729,13 +731,48 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
                                      __global float* energy_trace, __global int* outcome,
                                      __global const int* range_rows, const int n_ranges,
                                      volatile __global int* claims,
-                                     volatile __global int* control) {
+                                     volatile __global int* control,
+                                     __global const int* column_offsets,
+                                     __global const int* column_slots,
+                                     __global float* column_sums_out,
+                                     __global const int* column_range_columns,
+                                     const int n_column_ranges,
+                                     volatile __global int* column_claims) {
   if (get_local_id(0) != 0) return;
   const int own = (int)((long)n_ranges * get_group_id(0) / get_num_groups(0));
+  // With column uniqueness a step has two phases: the column sums of V_in, then the rows.
+  const int phases = n_column_ranges > 0 ? 2 : 1;
   for (;;) {
-    const int step = control[0];
-    if (step < 0) return;
+    const int tick = control[0];
+    if (tick < 0) return;
+    const int step = tick / phases;
     const int parity = step & 1;
+    if (phases == 2 && tick % 2 == 0) {
+      // The column sums of V_in (column_sums_blocked), ranges of columns claimed as the rows'.
+      __global const float* V = parity ? V1 : V0;
+      const int own_columns = (int)((long)n_column_ranges * get_group_id(0) / get_num_groups(0));
+      for (int k = 0; k < n_column_ranges; ++k) {
+        const int c = (own_columns + k) % n_column_ranges;
+        if (atomic_cmpxchg(&column_claims[c], step - 1, step) != step - 1) continue;
+        for (int col = column_range_columns[c]; col < column_range_columns[c + 1]; ++col) {
+          float sum = 0.0f;
+          for (int t = column_offsets[col]; t < column_offsets[col + 1]; ++t) {
+            sum += V[column_slots[t]];
+          }
+          column_sums_out[col] = sum;
+        }
+        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        if (atomic_inc(&control[1]) != n_column_ranges - 1) continue;
+        control[1] = 0;
+        mem_fence(CLK_GLOBAL_MEM_FENCE);
+        control[0] = tick + 1;
+        break;
+      }
+      while (control[0] == tick) {
+      }
+      mem_fence(CLK_GLOBAL_MEM_FENCE);
+      continue;
+    }
     __global float* V_in = parity ? V1 : V0;
     __global float* u_in = parity ? u1 : u0;
     __global float* V_out = parity ? V0 : V1;
@@ -753,7 +790,7 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
       if (atomic_inc(&control[1]) != n_ranges - 1) continue;
       // The step's last range: its bookkeeping, then the next step.
       control[1] = 0;
-      int next = step + 1;
+      int next = tick + 1;
       if (check) {
         float E = 0.0f;
         for (int i = 0; i < n_rows; ++i) E += row_energy[i];
@@ -781,7 +818,7 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
       control[0] = next;
       break;
     }
-    while (control[0] == step) {
+    while (control[0] == tick) {
     }
     mem_fence(CLK_GLOBAL_MEM_FENCE);
   }

@@ -385,9 +385,10 @@ TEST_P(OpenClStorageTest, BatchEqualsIndependentSolves) {
 
 // The solve loop on the device (one launch of solve_blocked_resident, SolveLoop::kDevice)
 // against the host loop (a launch per step, a round trip per check) on feature-vs-disparity
-// networks, the kind it runs: the same steps, checks, state and matches for both stop rules and
-// both activations; 4-slot rows (finished four rows at a time), 3-slot and wider rows; row
-// counts that are no multiple of four; and runs cut by the step limit (7 steps, and none).
+// networks and feature networks (column sums every step): the same steps, checks, state and
+// matches for both stop rules and both activations; 4-slot rows (finished four rows at a time),
+// 3-slot and wider rows; row counts that are no multiple of four; and runs cut by the step
+// limit (7 steps, and none).
 TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
   const WeightStorage storage = GetParam();
   if (storage == WeightStorage::kCsr) GTEST_SKIP() << "row blocks and on the fly only";
@@ -400,8 +401,10 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
   const int units = static_cast<int>(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
   for (std::uint64_t seed : {331u, 332u}) {
     for (int max_per_row : {4, 3, 0}) {
-      const MatchingProblem problem = testing::SyntheticDisparityProblem(
-          seed, 149 + static_cast<int>(seed % 2), 50, max_per_row);
+      // Seed 332: a feature-vs-feature network (column uniqueness: column sums every step).
+      const MatchingProblem problem =
+          seed == 331u ? testing::SyntheticDisparityProblem(seed, 149, 50, max_per_row)
+                       : testing::SyntheticProblem(seed, 150, 50, false, max_per_row);
       for (const auto rule :
            {DynamicsOptions::StopRule::kEnergy, DynamicsOptions::StopRule::kDecisions}) {
         for (const Activation activation : {Activation::kContinuous, Activation::kDiscrete}) {
@@ -507,9 +510,9 @@ INSTANTIATE_TEST_SUITE_P(Storages, OpenClStorageTest,
                            return name;
                          });
 
-// SolveLoop::kAuto: the loop goes to a CPU device for one small feature-vs-disparity network of
-// stored blocks; batches, feature-vs-feature networks (column sums between steps), on the fly,
-// large networks and kHost keep it on the host.
+// SolveLoop::kAuto: the loop goes to a CPU device for one small network of stored blocks (also a
+// feature-vs-feature network, its column sums inside the loop); batches, kHost and, with one
+// group a network, on the fly keep it on the host; larger networks take a group per core.
 TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   if (runtime_->is_gpu()) GTEST_SKIP() << "a CPU device's rule";
   EnergyOptions energy;
@@ -520,10 +523,11 @@ TEST_F(OpenClEngineTest, AutoSolveLoopRunsSmallSingleNetworksOnTheDevice) {
   EXPECT_EQ(alone.solve_loop, "device");
   EXPECT_LE(alone.step_bytes,
             ResidentMaxStepBytes(runtime_->device().getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>()));
+  // A feature network: its column sums run inside the device loop too.
   EXPECT_EQ(
       automatic.Solve(testing::SyntheticProblem(351, 150, 50, false, 4), energy, DynamicsOptions{})
           .solve_loop,
-      "host");
+      "device");
   for (const SolveReport& r : automatic.SolveBatch({small, small}, energy, DynamicsOptions{})) {
     EXPECT_EQ(r.solve_loop, "host");
   }
