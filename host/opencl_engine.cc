@@ -289,25 +289,41 @@ class DeviceNetwork {
     if (!decisions) ++blocking_reads_;
     *changes = DecisionChanges(dynamics, parity);  // empty unless kDecisions
   }
-  // Final V and u per neuron: network p is read from the state buffer it stopped on.
-  void ReadBlockedState(const std::vector<int>& stop_parity, std::vector<float>* V,
-                        std::vector<float>* u) {
-    const std::size_t slots = slot_count_;
-    std::vector<float> Vs[2], us[2];
-    // Only the state buffers some network stopped in, read without blocking, then one wait:
-    // each blocking read costs a round trip to the device's threads (tens of microseconds on
-    // PoCL, a tenth of a 2,000-feature solve).
-    bool needed[2] = {false, false};
-    for (const int b : stop_parity) needed[b == 0 ? 0 : 1] = true;
+  // The row blocks' state buffers (V and u of both parities, by slot).
+  struct BlockedState {
+    std::vector<float> V[2], u[2];
+  };
+  // Enqueues reads of the state buffers b with needed[b], without blocking.
+  void EnqueueStateReads(const bool (&needed)[2], BlockedState* state) {
     for (int b = 0; b < 2; ++b) {
       if (!needed[b]) continue;
-      Vs[b].resize(slots);
-      us[b].resize(slots);
-      queue_.enqueueReadBuffer(V_state_[b], CL_FALSE, 0, sizeof(float) * slots, Vs[b].data());
-      queue_.enqueueReadBuffer(u_state_[b], CL_FALSE, 0, sizeof(float) * slots, us[b].data());
+      state->V[b].resize(slot_count_);
+      state->u[b].resize(slot_count_);
+      queue_.enqueueReadBuffer(V_state_[b], CL_FALSE, 0, sizeof(float) * slot_count_,
+                               state->V[b].data());
+      queue_.enqueueReadBuffer(u_state_[b], CL_FALSE, 0, sizeof(float) * slot_count_,
+                               state->u[b].data());
     }
+  }
+  // Final V and u per neuron: network p is read from the state buffer it stopped on. Only the
+  // buffers some network stopped in are read, without blocking, then one wait: each blocking
+  // read costs a round trip to the device's threads (tens of microseconds on PoCL, a tenth of
+  // a 2,000-feature solve).
+  void ReadBlockedState(const std::vector<int>& stop_parity, std::vector<float>* V,
+                        std::vector<float>* u) {
+    bool needed[2] = {false, false};
+    for (const int b : stop_parity) needed[b == 0 ? 0 : 1] = true;
+    BlockedState state;
+    EnqueueStateReads(needed, &state);
     queue_.finish();
     ++blocking_reads_;
+    StateByNeuron(stop_parity, state, V, u);
+  }
+  // V and u per neuron from the state buffers' copies (network p's from its stop parity).
+  void StateByNeuron(const std::vector<int>& stop_parity, const BlockedState& state,
+                     std::vector<float>* V, std::vector<float>* u) const {
+    const std::vector<float>* Vs = state.V;
+    const std::vector<float>* us = state.u;
     const NetworkLayout& L = net_.layout;
     V->assign(static_cast<std::size_t>(L.n_neurons), 0.0f);
     u->assign(static_cast<std::size_t>(L.n_neurons), 0.0f);
@@ -638,6 +654,7 @@ class DeviceNetwork {
     int stop_parity = 0;
     std::vector<float> energy_trace;  // the energy at every check
     int groups = 1;                   // the work-groups that ran it
+    BlockedState state;               // both parities' state buffers after the solve
   };
   // The whole solve in one launch; then one blocking read (the trace behind the outcome).
   ResidentOutcome SolveResident() {
@@ -654,10 +671,13 @@ class DeviceNetwork {
     ++launches_;
     queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(), trace.data(),
                              nullptr, Record("read energy trace"));
+    // The state of both parities in the same wait (the stop parity is not known before it).
+    ResidentOutcome result;
+    const bool both[2] = {true, true};
+    EnqueueStateReads(both, &result.state);
     queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
                              Record("read outcome"));
     ++blocking_reads_;
-    ResidentOutcome result;
     result.groups = resident_groups_;
     result.steps = outcome[0];
     result.converged = outcome[1] != 0;
@@ -1109,7 +1129,7 @@ void SolveBlockedResident(DeviceNetwork& device, const DynamicsOptions& dynamics
   report.converged = outcome.converged;
   report.solve_groups = outcome.groups;
   std::vector<float> final_V, final_u;
-  device.ReadBlockedState({outcome.stop_parity}, &final_V, &final_u);
+  device.StateByNeuron({outcome.stop_parity}, outcome.state, &final_V, &final_u);
   Finish(final_V, final_u, device.network(), weights_ms, MillisecondsSince(start), reports);
 }
 
