@@ -328,6 +328,14 @@ __kernel void build_weight_blocks(const int n_rows,
 }
 
 // Column sums over padded slots (feature-vs-feature networks only): one work-item per column.
+// Column k's sum of V over its slots (column_sums_blocked, solve_blocked_resident).
+float column_sum(const int k, __global const int* column_offsets,
+                 __global const int* column_slots, __global const float* V) {
+  float sum = 0.0f;
+  for (int t = column_offsets[k]; t < column_offsets[k + 1]; ++t) sum += V[column_slots[t]];
+  return sum;
+}
+
 __kernel void column_sums_blocked(const int n_columns,
                                   __global const int* column_offsets,
                                   __global const int* column_slots,
@@ -335,9 +343,7 @@ __kernel void column_sums_blocked(const int n_columns,
                                   __global float* column_sums) {
   const int k = get_global_id(0);
   if (k >= n_columns) return;
-  float sum = 0.0f;
-  for (int t = column_offsets[k]; t < column_offsets[k + 1]; ++t) sum += V[column_slots[t]];
-  column_sums[k] = sum;
+  column_sums[k] = column_sum(k, column_offsets, column_slots, V);
 }
 
 // finish_row's parameters (one signature for its three variants below).
@@ -721,6 +727,16 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // claims and column_claims start at -1. energy_trace[c] = E at check c (E as the sum of row_energy in row order,
 // where segment_sum adds a tree: equal up to float rounding); outcome = (steps, converged, stop
 // parity, checks).
+// solve_blocked_resident: a range of the current phase is done (its writes fenced before). Returns
+// 1 for the phase's last of n ranges, after resetting the count for the next phase; the caller
+// then opens the next phase (control[0]).
+int last_range_of_phase(volatile __global int* control, const int n) {
+  mem_fence(CLK_GLOBAL_MEM_FENCE);
+  if (atomic_inc(&control[1]) != n - 1) return 0;
+  control[1] = 0;
+  return 1;
+}
+
 __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __global float* u0,
                                      __global float* V1, __global float* u1,
                                      __global float* row_energy, __global int* decisions,
@@ -755,15 +771,9 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
         const int c = (own_columns + k) % n_column_ranges;
         if (atomic_cmpxchg(&column_claims[c], step - 1, step) != step - 1) continue;
         for (int col = column_range_columns[c]; col < column_range_columns[c + 1]; ++col) {
-          float sum = 0.0f;
-          for (int t = column_offsets[col]; t < column_offsets[col + 1]; ++t) {
-            sum += V[column_slots[t]];
-          }
-          column_sums_out[col] = sum;
+          column_sums_out[col] = column_sum(col, column_offsets, column_slots, V);
         }
-        mem_fence(CLK_GLOBAL_MEM_FENCE);
-        if (atomic_inc(&control[1]) != n_column_ranges - 1) continue;
-        control[1] = 0;
+        if (!last_range_of_phase(control, n_column_ranges)) continue;
         mem_fence(CLK_GLOBAL_MEM_FENCE);
         control[0] = tick + 1;
         break;
@@ -786,10 +796,8 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
       range_changes[r] = 0;
       step_rows(range_rows[r], range_rows[r + 1], STEP_NETWORK_ARGS, V_in, u_in, V_out, u_out,
                 row_energy, decisions, range_changes + r, check && by_decisions);
-      mem_fence(CLK_GLOBAL_MEM_FENCE);
-      if (atomic_inc(&control[1]) != n_ranges - 1) continue;
+      if (!last_range_of_phase(control, n_ranges)) continue;
       // The step's last range: its bookkeeping, then the next step.
-      control[1] = 0;
       int next = tick + 1;
       if (check) {
         float E = 0.0f;
