@@ -112,11 +112,10 @@ const std::map<std::string, Setter>& DirectOptions() {
 // The CLI's string-valued flags with their defaults (parsed after the preset, as Resolve does).
 const std::map<std::string, std::string>& StringOptionDefaults() {
   static const std::map<std::string, std::string> defaults = {
-      {"features", "canny"},      {"engine", "opencl"},    {"objective", ""},
-      {"init", "off"},            {"activation", "continuous"}, {"decode", "thesis"},
-      {"network", ""},            {"zrange", ""},          {"memory-budget-mb", "2048"},
-      {"device", ""},             {"no-lr-check", "false"},
-      {"stop", ""},               {"weights", "auto"},
+      {"features", "canny"},        {"engine", "opencl"}, {"objective", ""},        {"init", "off"},
+      {"activation", "continuous"}, {"decode", "thesis"}, {"network", ""},          {"zrange", ""},
+      {"memory-budget-mb", "2048"}, {"device", ""},       {"no-lr-check", "false"}, {"stop", ""},
+      {"weights", "auto"},          {"data-term", ""},
   };
   return defaults;
 }
@@ -178,6 +177,17 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
     o.candidates.subpixel_peaks = preset_candidates.subpixel_peaks;
   }
   if (!given("top-k")) o.candidates.top_k = preset_candidates.top_k;
+  o.data_term = chosen->matcher.data_term;
+  if (given("data-term")) {
+    if (strings["data-term"] == "census") {
+      o.data_term.kind = vision::DataTermOptions::Kind::kCensus;
+    } else if (strings["data-term"] == "zncc") {
+      o.data_term.kind = vision::DataTermOptions::Kind::kZncc;
+    } else {
+      throw std::invalid_argument("unknown data-term '" + strings["data-term"] +
+                                  "' (census or zncc)");
+    }
+  }
   if (!given("support-radius")) o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
 
   if (auto d = vision::ParseFeatureDetector(strings["features"])) {
@@ -273,6 +283,8 @@ void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings)
   o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
   o.candidates.zncc_peaks = false;
   o.candidates.subpixel_peaks = false;
+  // The feature network's data term is ZNCC (hnn-geometry-lr), unless the user asked.
+  if (settings->given.count("data-term") == 0) o.data_term = vision::DataTermOptions{};
   if (fallback) {
     if (settings->given.count("top-k") == 0) o.candidates.top_k = fallback->matcher.candidates.top_k;
     if (settings->given.count("support-radius") == 0) {

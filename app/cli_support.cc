@@ -154,6 +154,15 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->default_str(shown.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
                         ? "disparity"
                         : "feature");
+  data_term_option =
+      cmd->add_option("--data-term", data_term,
+                      "The similarity of windows: census (5 x 5 census, Hamming costs summed over "
+                      "13 x 13 with adaptive support weights; hnn-default on rectified pairs) or "
+                      "zncc (thesis eq. 6.9 over --zncc-window; the feature network's). Default: "
+                      "the preset's")
+          ->default_str(shown.matcher.data_term.kind == vision::DataTermOptions::Kind::kCensus
+                            ? "census"
+                            : "zncc");
   cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
       ->capture_default_str();
   cmd->add_option("--engine", engine,
@@ -248,6 +257,7 @@ void MatcherFlags::Resolve() {
   if (!device.empty()) overrides["device"] = device;
   if (given(objective_option)) overrides["objective"] = objective;
   if (given(network_option)) overrides["network"] = network;
+  if (given(data_term_option)) overrides["data-term"] = data_term;
   if (given(top_k_option)) overrides["top-k"] = top_k_option->results().back();
   if (given(support_radius_option)) overrides["support-radius"] = support_radius_option->results().back();
   if (given(stop_option)) overrides["stop"] = stop_rule;

@@ -40,6 +40,7 @@ struct MatcherFlags {
   vision::RefinementOptions refinement;  ///< from the preset, after Resolve()
   CLI::Option* objective_option = nullptr;
   CLI::Option* network_option = nullptr;
+  CLI::Option* data_term_option = nullptr;
   CLI::Option* top_k_option = nullptr;
   CLI::Option* support_radius_option = nullptr;
   CLI::Option* stop_option = nullptr;
@@ -51,6 +52,7 @@ struct MatcherFlags {
   std::string decode = "thesis";
   std::string weight_storage = "auto";
   std::string network = "feature";
+  std::string data_term = "census";
   std::string zrange;
   double memory_budget_mb = 2048.0;
   std::string device;

@@ -36,6 +36,9 @@ struct EvalArgs {
   bool left_right_check = false, subpixel = false, zncc_peaks = false, subpixel_peaks = false;
   bool epipolar_snap = false, epipolar_subpixel = false;
   double lr_tolerance = 1.0;
+  std::string data_term;
+  int census_window = 5, aggregation_window = 13;
+  double support_gamma = 30.0;
   CLI::App* cmd = nullptr;
 };
 
@@ -80,6 +83,18 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
   if (Given(args, "--lr-tolerance")) preset.refinement.left_right_tolerance_px = args.lr_tolerance;
   if (Given(args, "--zncc-peaks")) o.candidates.zncc_peaks = args.zncc_peaks;
   if (Given(args, "--subpixel-peaks")) o.candidates.subpixel_peaks = args.subpixel_peaks;
+  if (Given(args, "--data-term")) {
+    if (args.data_term == "zncc") {
+      o.data_term.kind = vision::DataTermOptions::Kind::kZncc;
+    } else if (args.data_term == "census") {
+      o.data_term.kind = vision::DataTermOptions::Kind::kCensus;
+    } else {
+      throw std::invalid_argument("--data-term: unknown '" + args.data_term + "' (zncc or census)");
+    }
+  }
+  if (Given(args, "--census-window")) o.data_term.census_window = args.census_window;
+  if (Given(args, "--aggregation-window")) o.data_term.aggregation_window = args.aggregation_window;
+  if (Given(args, "--support-gamma")) o.data_term.support_gamma = args.support_gamma;
   return preset;
 }
 
@@ -239,6 +254,18 @@ void AddEvalCommand(CLI::App& app) {
   cmd->add_option("--lr-tolerance", args->lr_tolerance, "First preset: left-right tolerance (px)");
   cmd->add_option("--zncc-peaks", args->zncc_peaks,
                   "First preset, disparity network: candidates only at ZNCC peaks (0/1)");
+  cmd->add_option(
+      "--data-term", args->data_term,
+      "First preset: the similarity of windows, zncc (thesis eq. 6.9, --zncc-window) or "
+      "census (hnn-default)");
+  cmd->add_option("--census-window", args->census_window,
+                  "First preset, census data term: census transform side, 3 or 5 (hnn-default 5)");
+  cmd->add_option("--aggregation-window", args->aggregation_window,
+                  "First preset, census data term: side of the square the Hamming costs are summed "
+                  "over, odd 1..31 (hnn-default 13)");
+  cmd->add_option("--support-gamma", args->support_gamma,
+                  "First preset, census data term: adaptive support weight exp(-|dI| / gamma), "
+                  "grey levels; 0 = box (hnn-default 30)");
   cmd->add_option("--subpixel-peaks", args->subpixel_peaks,
                   "First preset, disparity network: parabola sub-pixel candidate disparities (0/1)");
   cmd->callback([args] { RunEval(*args); });

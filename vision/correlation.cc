@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -113,7 +114,120 @@ float WindowDot(int window, const float* left, std::size_t left_stride, const fl
   return total;
 }
 
+// Census codes of a CV_8UC1 image (Zabih & Woodfill 1994): per pixel one bit per other pixel of
+// the window x window square (row by row), set when that pixel is darker than the centre;
+// borders replicated. Written by hand: OpenCV's census lives in the optional contrib modules.
+cv::Mat CensusCodes(const cv::Mat& image, int window) {
+  const int r = window / 2;
+  cv::Mat padded;
+  cv::copyMakeBorder(image, padded, r, r, r, r, cv::BORDER_REPLICATE);
+  cv::Mat codes = cv::Mat::zeros(image.size(), CV_32S);
+  for (int y = 0; y < image.rows; ++y) {
+    auto* out = reinterpret_cast<std::uint32_t*>(codes.ptr<std::int32_t>(y));
+    const std::uint8_t* centre = padded.ptr<std::uint8_t>(y + r) + r;
+    for (int dy = -r; dy <= r; ++dy) {
+      const std::uint8_t* row = padded.ptr<std::uint8_t>(y + r + dy) + r + 0;
+      for (int dx = -r; dx <= r; ++dx) {
+        if (dx == 0 && dy == 0) continue;
+        for (int x = 0; x < image.cols; ++x) {
+          out[x] = (out[x] << 1) | (row[x + dx] < centre[x] ? 1u : 0u);
+        }
+      }
+    }
+  }
+  return codes;
+}
+
+// Weighted Hamming costs of one fixed square of codes (side x side, top-left `fixed`) against
+// `count` squares of a row whose top-left corners are run, run + 1, ...: costs[e] =
+// sum_q weights[q] popcount(fixed[q] ^ run[q + e]). Integer sums, so any order gives the same
+// result; the inner loop runs over e as SIMD lanes.
+__attribute__((always_inline)) inline void CensusRunBody(
+    int side, const std::uint32_t* fixed, std::size_t fixed_stride, const std::uint32_t* run,
+    std::size_t run_stride, const std::uint16_t* weights, int count, std::int32_t* costs) {
+  for (int e = 0; e < count; ++e) costs[e] = 0;
+  for (int qy = 0; qy < side; ++qy) {
+    for (int qx = 0; qx < side; ++qx) {
+      const std::int32_t w = weights[qy * side + qx];
+      if (w == 0) continue;
+      const std::uint32_t c = fixed[static_cast<std::size_t>(qy) * fixed_stride + qx];
+      const std::uint32_t* row = run + static_cast<std::size_t>(qy) * run_stride + qx;
+      for (int e = 0; e < count; ++e) costs[e] += w * __builtin_popcount(c ^ row[e]);
+    }
+  }
+}
+
+using CensusRunFunction = void (*)(int, const std::uint32_t*, std::size_t, const std::uint32_t*,
+                                   std::size_t, const std::uint16_t*, int, std::int32_t*);
+
+void CensusRunDefault(int side, const std::uint32_t* fixed, std::size_t fixed_stride,
+                      const std::uint32_t* run, std::size_t run_stride,
+                      const std::uint16_t* weights, int count, std::int32_t* costs) {
+  CensusRunBody(side, fixed, fixed_stride, run, run_stride, weights, count, costs);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// The same body built for CPUs with a vector popcount (AVX-512 VPOPCNTDQ: 16 lanes an
+// instruction) or a scalar one, picked at run time. (GCC 12's target_clones does not take
+// avx512vpopcntdq, so host/cpu_clones.h's macro cannot express it.)
+__attribute__((target("avx512f,avx512vpopcntdq"))) void CensusRunVpopcnt(
+    int side, const std::uint32_t* fixed, std::size_t fixed_stride, const std::uint32_t* run,
+    std::size_t run_stride, const std::uint16_t* weights, int count, std::int32_t* costs) {
+  CensusRunBody(side, fixed, fixed_stride, run, run_stride, weights, count, costs);
+}
+__attribute__((target("popcnt"))) void CensusRunPopcnt(
+    int side, const std::uint32_t* fixed, std::size_t fixed_stride, const std::uint32_t* run,
+    std::size_t run_stride, const std::uint16_t* weights, int count, std::int32_t* costs) {
+  CensusRunBody(side, fixed, fixed_stride, run, run_stride, weights, count, costs);
+}
+CensusRunFunction PickCensusRun() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512vpopcntdq") && __builtin_cpu_supports("avx512f")) {
+    return CensusRunVpopcnt;
+  }
+  if (__builtin_cpu_supports("popcnt")) return CensusRunPopcnt;
+  return CensusRunDefault;
+}
+#else
+CensusRunFunction PickCensusRun() { return CensusRunDefault; }
+#endif
+
+void CensusRunKernel(int side, const std::uint32_t* fixed, std::size_t fixed_stride,
+                     const std::uint32_t* run, std::size_t run_stride, const std::uint16_t* weights,
+                     int count, std::int32_t* costs) {
+  static const CensusRunFunction function = PickCensusRun();
+  function(side, fixed, fixed_stride, run, run_stride, weights, count, costs);
+}
+
+// The pixel a point rounds to (x + 1/2 truncated, as ZnccMatcher::operator() rounds), when it
+// lies in the image; false for NaN and points outside.
+bool RoundToPixel(const Eigen::Vector2f& point, const cv::Mat& image, int* x, int* y) {
+  const float px = point.x() + 0.5f, py = point.y() + 0.5f;
+  if (!(px >= 0.0f && px < static_cast<float>(image.cols) && py >= 0.0f &&
+        py < static_cast<float>(image.rows))) {
+    return false;
+  }
+  *x = static_cast<int>(px);
+  *y = static_cast<int>(py);
+  return true;
+}
+
 }  // namespace
+
+std::string DataTermOptions::Check() const {
+  if (kind == Kind::kZncc) return "";
+  if (census_window != 3 && census_window != 5) {
+    return "data_term.census_window must be 3 or 5 (got " + std::to_string(census_window) + ")";
+  }
+  if (aggregation_window < 1 || aggregation_window > 31 || aggregation_window % 2 == 0) {
+    return "data_term.aggregation_window must be odd, 1..31 (got " +
+           std::to_string(aggregation_window) + ")";
+  }
+  if (!(support_gamma >= 0.0 && support_gamma <= 1e6)) {
+    return "data_term.support_gamma must be in [0, 1e6] grey levels (0 = box)";
+  }
+  return "";
+}
 
 cv::Mat ZnccWindowStatistics(const cv::Mat& image, int window) {
   CheckImage(image, "window statistics");
@@ -128,11 +242,26 @@ cv::Mat ZnccWindowStatistics(const cv::Mat& image, int window) {
   return statistics;
 }
 
-ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window)
-    : window_(window), radius_(window / 2) {
+ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window,
+                         const DataTermOptions& data_term)
+    : window_(window), radius_(window / 2), data_term_(data_term) {
   if (window < 3 || window > 15 || window % 2 == 0) {
     throw std::invalid_argument("ZnccMatcher: window must be odd and in 3..15 (got " +
                                 std::to_string(window) + ")");
+  }
+  if (std::string problem = data_term.Check(); !problem.empty()) {
+    throw std::invalid_argument("ZnccMatcher: " + problem);
+  }
+  const bool census = data_term.kind == DataTermOptions::Kind::kCensus;
+  if (census) {
+    census_bits_ = data_term.census_window * data_term.census_window - 1;
+    aggregation_radius_ = data_term.aggregation_window / 2;
+    for (int k = 0; k < 256; ++k) {
+      support_lut_[static_cast<std::size_t>(k)] =
+          data_term.support_gamma > 0.0 ? static_cast<std::uint16_t>(std::lround(
+                                              255.0 * std::exp(-k / data_term.support_gamma)))
+                                        : std::uint16_t{1};
+    }
   }
   CheckImage(left, "left");
   CheckImage(right, "right");
@@ -144,7 +273,18 @@ ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window)
       try {
         const cv::Mat& image = side == 0 ? left : right;
         image.convertTo(side == 0 ? left_ : right_, CV_32F);
-        (side == 0 ? left_stats_ : right_stats_) = ZnccWindowStatistics(image, window);
+        if (census) {
+          // Codes and grey levels padded by the aggregation radius (edges replicated), so that
+          // the square of every pixel of the image is inside the arrays.
+          const int h = data_term.aggregation_window / 2;
+          cv::copyMakeBorder(CensusCodes(image, data_term.census_window),
+                             side == 0 ? left_census_ : right_census_, h, h, h, h,
+                             cv::BORDER_REPLICATE);
+          cv::copyMakeBorder(side == 0 ? left_ : right_, side == 0 ? left_support_ : right_support_,
+                             h, h, h, h, cv::BORDER_REPLICATE);
+        } else {
+          (side == 0 ? left_stats_ : right_stats_) = ZnccWindowStatistics(image, window);
+        }
       } catch (...) {
         failed[side] = std::current_exception();
       }
@@ -155,8 +295,85 @@ ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window)
   }
 }
 
+bool ZnccMatcher::AggregationInside(int x, int y, const cv::Mat& image) const {
+  return x >= 0 && y >= 0 && x < image.cols && y < image.rows;
+}
+
+std::int64_t ZnccMatcher::SupportWeights(const cv::Mat& grey, int x, int y,
+                                         std::uint16_t* weights) const {
+  const int h = aggregation_radius_, side = 2 * h + 1;
+  const auto centre = static_cast<int>(grey.at<float>(y + h, x + h));  // padded by h
+  std::int64_t sum = 0;
+  for (int qy = 0; qy < side; ++qy) {
+    const float* row = grey.ptr<float>(y + qy) + x;
+    for (int qx = 0; qx < side; ++qx) {
+      const std::uint16_t w =
+          support_lut_[static_cast<std::size_t>(std::abs(static_cast<int>(row[qx]) - centre))];
+      weights[qy * side + qx] = w;
+      sum += w;
+    }
+  }
+  return sum;
+}
+
+float ZnccMatcher::CensusFromCost(std::int64_t cost, std::int64_t weight_sum) const {
+  return static_cast<float>(
+      1.0 - 2.0 * static_cast<double>(cost) /
+                (static_cast<double>(census_bits_) * static_cast<double>(weight_sum)));
+}
+
+void ZnccMatcher::CensusRun(bool reference_left, int fx, int fy, int ox_first, int oy, int count,
+                            float* similarity) const {
+  const int h = aggregation_radius_, side = 2 * h + 1;
+  const cv::Mat& reference_codes = reference_left ? left_census_ : right_census_;
+  const cv::Mat& other_codes = reference_left ? right_census_ : left_census_;
+  thread_local std::vector<std::uint16_t> weights;
+  thread_local std::vector<std::int32_t> costs;
+  weights.resize(static_cast<std::size_t>(side) * side);
+  costs.resize(static_cast<std::size_t>(count));
+  const std::int64_t weight_sum =
+      SupportWeights(reference_left ? left_support_ : right_support_, fx, fy, weights.data());
+  const auto stride = [](const cv::Mat& m) { return m.step[0] / sizeof(std::uint32_t); };
+  CensusRunKernel(
+      side, reinterpret_cast<const std::uint32_t*>(reference_codes.ptr<std::int32_t>(fy)) + fx,
+      stride(reference_codes),
+      reinterpret_cast<const std::uint32_t*>(other_codes.ptr<std::int32_t>(oy)) + ox_first,
+      stride(other_codes), weights.data(), count, costs.data());
+  for (int e = 0; e < count; ++e)
+    similarity[e] = CensusFromCost(costs[static_cast<std::size_t>(e)], weight_sum);
+}
+
+float ZnccMatcher::CensusSimilarity(int lx, int ly, int rx, int ry, bool reference_left) const {
+  if (!AggregationInside(lx, ly, left_) || !AggregationInside(rx, ry, right_)) return 0.0f;
+  float similarity = 0.0f;
+  if (reference_left) {
+    CensusRun(true, lx, ly, rx, ry, 1, &similarity);
+  } else {
+    CensusRun(false, rx, ry, lx, ly, 1, &similarity);
+  }
+  return similarity;
+}
+
+float ZnccMatcher::ReverseSimilarity(const Eigen::Vector2f& left_point,
+                                     const Eigen::Vector2f& right_point) const {
+  if (data_term_.kind != DataTermOptions::Kind::kCensus) return (*this)(left_point, right_point);
+  int lx = 0, ly = 0, rx = 0, ry = 0;
+  if (!RoundToPixel(left_point, left_, &lx, &ly) || !RoundToPixel(right_point, right_, &rx, &ry)) {
+    return 0.0f;
+  }
+  return CensusSimilarity(lx, ly, rx, ry, false);
+}
+
 float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
                               const Eigen::Vector2f& right_point) const {
+  if (data_term_.kind == DataTermOptions::Kind::kCensus) {
+    int lx = 0, ly = 0, rx = 0, ry = 0;
+    if (!RoundToPixel(left_point, left_, &lx, &ly) ||
+        !RoundToPixel(right_point, right_, &rx, &ry)) {
+      return 0.0f;
+    }
+    return CensusSimilarity(lx, ly, rx, ry, true);
+  }
   // Round to the nearest pixel: for x + 1/2 >= radius >= 0, truncation is floor(x + 1/2). The
   // comparisons are false for NaN, so NaN gives 0 as well; no huge float reaches the casts.
   const float left_x = left_point.x() + 0.5f;
@@ -255,6 +472,10 @@ void ZnccMatcher::RowProfile(const Eigen::Vector2f& left_point, int d_min, int d
                              float* out) const {
   const int count = d_max - d_min + 1;
   if (count <= 0) return;
+  if (data_term_.kind == DataTermOptions::Kind::kCensus) {
+    CensusRowProfile(left_point, d_min, d_max, out);
+    return;
+  }
   // The fast path needs the left window inside and not flat, a right row inside, and the
   // rounded right x to step by exactly one pixel a disparity; anything else (and every
   // disparity whose right window leaves the image) is computed one by one.
@@ -309,10 +530,74 @@ void ZnccMatcher::RowProfile(const Eigen::Vector2f& left_point, int d_min, int d
   }
 }
 
+void ZnccMatcher::CensusRowProfile(const Eigen::Vector2f& left_point, int d_min, int d_max,
+                                   float* out) const {
+  // Each disparity's right pixel as operator() rounds it; the disparities whose squares lie
+  // inside and whose right x steps down by one pixel form runs, each one kernel call (the same
+  // integer costs operator() computes, so the same floats); the rest are 0 (outside).
+  int lx = 0, ly = 0;
+  const bool left_inside =
+      RoundToPixel(left_point, left_, &lx, &ly) && AggregationInside(lx, ly, left_);
+  thread_local std::vector<float> run_similarity;
+  int d = d_min;
+  while (d <= d_max) {
+    int rx = 0, ry = 0;
+    const auto right_pixel = [&](int level, int* x, int* y) {
+      return left_inside &&
+             RoundToPixel(
+                 Eigen::Vector2f(left_point.x() - static_cast<float>(level), left_point.y()),
+                 right_, x, y) &&
+             AggregationInside(*x, *y, right_);
+    };
+    if (!right_pixel(d, &rx, &ry)) {
+      out[d - d_min] = 0.0f;
+      ++d;
+      continue;
+    }
+    int last = d, x = 0, y = 0;
+    while (last + 1 <= d_max && right_pixel(last + 1, &x, &y) && y == ry &&
+           x == rx - (last + 1 - d))
+      ++last;
+    const int run = last - d + 1;
+    run_similarity.resize(static_cast<std::size_t>(run));
+    const int x_low = rx - (run - 1);  // the right x of `last`
+    CensusRun(true, lx, ly, x_low, ry, run, run_similarity.data());
+    for (int k = d; k <= last; ++k) {
+      out[k - d_min] = run_similarity[static_cast<std::size_t>(rx - (k - d) - x_low)];
+    }
+    d = last + 1;
+  }
+}
+
 void ZnccMatcher::ReverseRowProfile(const Eigen::Vector2f& right_point, int d_min, int d_max,
                                     float* out) const {
   const int count = d_max - d_min + 1;
   if (count <= 0) return;
+  if (data_term_.kind == DataTermOptions::Kind::kCensus) {
+    // Left points (x0 + d, y0): integers, so they round to themselves; the ones whose square
+    // lies inside are one run of consecutive x, one kernel call with the right square fixed.
+    const float x0 = std::round(right_point.x()), y0 = std::round(right_point.y());
+    int rx = 0, ry = 0;
+    const bool right_inside = RoundToPixel(right_point, right_, &rx, &ry) &&
+                              AggregationInside(rx, ry, right_) && std::abs(x0) < 1e6f &&
+                              std::abs(y0) < 1e6f;
+    const int ly = right_inside ? static_cast<int>(y0) : 0;
+    const int x_base = right_inside ? static_cast<int>(x0) : 0;
+    int d_first = d_max + 1, d_last = d_min - 1;
+    if (right_inside && ly >= 0 && ly < left_.rows) {
+      d_first = std::max(d_min, -x_base);
+      d_last = std::min(d_max, left_.cols - 1 - x_base);
+    }
+    for (int d = d_min; d <= d_max; ++d) {
+      if (d < d_first || d > d_last) {
+        out[d - d_min] =
+            ReverseSimilarity(Eigen::Vector2f(x0 + static_cast<float>(d), y0), right_point);
+      }
+    }
+    if (d_first <= d_last)
+      CensusRun(false, rx, ry, x_base + d_first, ly, d_last - d_first + 1, out + (d_first - d_min));
+    return;
+  }
   const float x0 = std::round(right_point.x()), y0 = std::round(right_point.y());
   auto one_by_one = [&](int d) {
     out[d - d_min] = (*this)(Eigen::Vector2f(x0 + static_cast<float>(d), y0), right_point);

@@ -96,16 +96,19 @@ std::string MatcherKey(const MatcherOptions& o) {
       << o.features.moravec_window << ',' << o.features.moravec_threshold << ','
       << o.features.sobel_threshold << '|' << o.candidates.rectified << ','
       << o.candidates.max_epipolar_distance_px << ',' << o.candidates.min_disparity << ','
-      << o.candidates.max_disparity << ',' << o.candidates.top_k << ',' << o.candidates.min_correlation
-      << ',' << o.candidates.dense << ',' << static_cast<int>(o.candidates.kind) << ','
-      << o.candidates.zncc_peaks << ',' << o.candidates.subpixel_peaks << '|' << o.zncc_window
-      << '|' << e.A << ',' << e.B << ',' << e.C << ',' << e.D << ',' << e.W1 << ',' << e.W2 << ','
-      << e.T << ',' << e.lambda << ',' << e.theta << ',' << static_cast<int>(e.objective) << ','
+      << o.candidates.max_disparity << ',' << o.candidates.top_k << ','
+      << o.candidates.min_correlation << ',' << o.candidates.dense << ','
+      << static_cast<int>(o.candidates.kind) << ',' << o.candidates.zncc_peaks << ','
+      << o.candidates.subpixel_peaks << '|' << o.zncc_window << ','
+      << static_cast<int>(o.data_term.kind) << ',' << o.data_term.census_window << ','
+      << o.data_term.aggregation_window << ',' << o.data_term.support_gamma << '|' << e.A << ','
+      << e.B << ',' << e.C << ',' << e.D << ',' << e.W1 << ',' << e.W2 << ',' << e.T << ','
+      << e.lambda << ',' << e.theta << ',' << static_cast<int>(e.objective) << ','
       << static_cast<int>(e.compatibility) << ',' << e.support_radius_px << ','
       << e.distance_attenuation << ',' << e.attenuation_centre_px << ',' << e.attenuation_slope
       << ',' << e.weight_offset << '|' << static_cast<int>(d.activation) << ',' << d.alpha << ','
-      << static_cast<int>(d.initial_state) << ',' << d.initial_value << ',' << d.initial_noise << ','
-      << d.seed << ',' << d.time_step << ',' << d.tau << ',' << d.max_steps << ','
+      << static_cast<int>(d.initial_state) << ',' << d.initial_value << ',' << d.initial_noise
+      << ',' << d.seed << ',' << d.time_step << ',' << d.tau << ',' << d.max_steps << ','
       << d.energy_interval << ',' << d.energy_tolerance << ',' << d.stable_checks << ','
       << d.max_updates << ',' << d.stable_updates << ',' << d.update_tolerance << '|'
       << static_cast<int>(o.decode.method) << ',' << o.decode.threshold << '|'
@@ -650,6 +653,7 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
         preset.matcher.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
         preset.matcher.candidates.zncc_peaks = false;
         preset.matcher.candidates.subpixel_peaks = false;
+        preset.matcher.data_term = DataTermOptions{};  // the feature network's ZNCC
         evaluation.notices.push_back(preset.name +
                                      ": the disparity network needs rectified rows; the warped "
                                      "run uses the feature-vs-feature network");

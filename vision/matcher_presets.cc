@@ -91,6 +91,14 @@ MatcherPreset AccurateDefaultPreset() {
   // 12 px support radius instead of 8 (+0.2 points; 16 px gave the same precision, slower).
   preset.matcher.candidates.top_k = 4;
   preset.matcher.energy.support_radius_px = 12.0;
+  // Measured: the census data term (5 x 5 census, Hamming costs summed over 13 x 13 with
+  // adaptive support weights, gamma 30) instead of ZNCC 7 x 7 for the candidates' peaks, the
+  // biases, the similarity in the compatibilities and the left-right check: fewer wrong
+  // matches at depth edges, where a ZNCC window is ruled by the occluding contour.
+  preset.matcher.data_term.kind = DataTermOptions::Kind::kCensus;
+  preset.matcher.data_term.census_window = 5;
+  preset.matcher.data_term.aggregation_window = 13;
+  preset.matcher.data_term.support_gamma = 30.0;
   // Unrectified pairs (eval --warped, match/pick with a calibration): snap the right point onto
   // its epipolar line, then the parabola along the line. Measured on the five warped pairs:
   // 92.2 % within 1 px -> 93.7 % (snap) -> 94.8 % (snap + sub-pixel), docs/accuracy.md.
@@ -214,7 +222,7 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
     refine_along_epipolar_lines();
     return;
   }
-  const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window);
+  const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window, matcher.data_term);
   const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
   const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
   std::vector<StereoMatch> kept;
@@ -240,7 +248,7 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
         const Eigen::Vector3d line =
             calibration->F.transpose() * Eigen::Vector3d(match.right.x(), match.right.y(), 1.0);
         for (const Eigen::Vector2f& left : PixelsOnLine(line, left_grey.cols, left_grey.rows)) {
-          const float score = zncc(left, match.right);
+          const float score = zncc.ReverseSimilarity(left, match.right);
           if (score > best) best = score, best_left = left;
         }
       }

@@ -78,6 +78,7 @@ std::string MatcherOptions::Check() const {
   if (zncc_window < 3 || zncc_window > 15 || zncc_window % 2 == 0) {
     return "zncc_window must be odd, 3..15 (got " + std::to_string(zncc_window) + ")";
   }
+  if (auto e = data_term.Check(); !e.empty()) return e;
   if (!(decode.threshold >= 0.0 && decode.threshold <= 1.0)) return "decode threshold must be in [0, 1]";
   return {};
 }
@@ -122,7 +123,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   }
 
   start = Clock::now();
-  const ZnccMatcher zncc(left_grey, right_grey, options.zncc_window);
+  const ZnccMatcher zncc(left_grey, right_grey, options.zncc_window, options.data_term);
   CandidateReport candidates =
       BuildCandidates(left.points, right.points, zncc, calibration, options.candidates);
   report.timing_ms.candidates = MillisecondsSince(start);

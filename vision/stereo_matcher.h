@@ -48,24 +48,29 @@ inline constexpr float kSurfaceResidualCapPx = 5.0f;
 ///     + w_surface_residual * surface_residual,
 /// where potential_margin = u(winner) - u(best other neuron of its row) (at equilibrium
 /// u = sum_b W_ab V_b + I_a: the winner's lead in support over its runner-up);
-/// correlation = the winner's ZNCC, correlation_margin = its ZNCC minus the best other
-/// candidate's of the row; for r in kAgreementRadiiPx, neighbours_r = the other decoded matches
-/// whose left point lies within r px, agreement_r = the share of them whose displacement
-/// (right - left point) agrees with this match's (kAgreementSlope; 0 with no neighbour);
-/// surface_residual = the distance (px) of this match's displacement from the plane fitted to
-/// its neighbours' within kSurfaceRadiusPx (capped at kSurfaceResidualCapPx). A wrong winner is
-/// one its surface does not back, and dense, agreeing neighbourhoods are textured surfaces the
-/// network resolved. Defaults: fitted by logistic regression (correct = within 1 px of the
-/// ground truth) on the five shared Middlebury pairs with hnn-default
-/// (scripts/fit_confidence.py; figures in docs/accuracy.md).
+/// correlation = the winner's similarity (the data term's: census in hnn-default, ZNCC
+/// otherwise), correlation_margin = it minus the best other candidate's of the row; for r in
+/// kAgreementRadiiPx, neighbours_r = the other decoded matches whose left point lies within r px,
+/// agreement_r = the share of them whose displacement (right - left point) agrees with this match's
+/// (kAgreementSlope; 0 with no neighbour); surface_residual = the distance (px) of this match's
+/// displacement from the plane fitted to its neighbours' within kSurfaceRadiusPx (capped at
+/// kSurfaceResidualCapPx). A wrong winner is one its surface does not back, and dense, agreeing
+/// neighbourhoods are textured surfaces the network resolved. Defaults: fitted by logistic
+/// regression (correct = within 1 px of the ground truth) on the five shared Middlebury pairs with
+/// hnn-default and its census data term (scripts/fit_confidence.py; figures in docs/accuracy.md).
+/// The potential margin and the surface residual are kept as features but weigh 0: fitted with the
+/// rest, their weights came out with the sign that would rank a better-supported match lower, for
+/// no gain out of sample.
 struct ConfidenceOptions {
-  double bias = -7.90734;
-  double w_potential_margin = 5.97741e-05;
-  double w_correlation = 4.22575;
-  double w_correlation_margin = 0.399208;
-  std::array<double, 4> w_agreement = {0.191842, 0.748735, 1.78553, 2.14769};  ///< per kAgreementRadiiPx
-  std::array<double, 4> w_neighbours = {-0.000448942, 0.0182109, 0.0133881, 0.00269549};  ///< per kAgreementRadiiPx
-  double w_surface_residual = -0.058943;  ///< per px
+  double bias = -4.84755;
+  double w_potential_margin = 0.0;
+  double w_correlation = 5.57807;
+  double w_correlation_margin = 3.39316;
+  std::array<double, 4> w_agreement = {0.0336344, -0.702207, 1.2805,
+                                       1.31364};  ///< per kAgreementRadiiPx
+  std::array<double, 4> w_neighbours = {0.0620927, 0.0178209, 0.00235701,
+                                        0.0019099};  ///< per kAgreementRadiiPx
+  double w_surface_residual = 0.0;                   ///< per px
   double potential_margin_cap = 1e4;  ///< clamps absurd margins (none seen above ~1,500)
   std::string Check() const;
 };
@@ -74,6 +79,8 @@ struct MatcherOptions {
   FeatureOptions features;          ///< same detector on both images
   CandidateOptions candidates;
   int zncc_window = 7;              ///< thesis: 7 (or 5)
+  /// The similarity of windows (vision/correlation.h): ZNCC here; census in hnn-default.
+  DataTermOptions data_term;
   hnn::EnergyOptions energy;
   hnn::DynamicsOptions dynamics;
   hnn::DecodeOptions decode;
@@ -101,8 +108,8 @@ struct StereoMatch {
   /// In [0, 1], higher = more likely correct; ranks matches (ConfidenceOptions).
   float confidence = 0.0f;
   float potential_margin = 0.0f;    ///< u(winner) - u(best other neuron of its row)
-  float correlation = 0.0f;         ///< the winner's ZNCC
-  float correlation_margin = 0.0f;  ///< its ZNCC - the best other candidate's of the row
+  float correlation = 0.0f;         ///< the winner's similarity (data term: census or ZNCC)
+  float correlation_margin = 0.0f;  ///< it - the best other candidate's of the row
   /// Per kAgreementRadiiPx: other decoded matches within r px (left image), and how many of them
   /// have a displacement that agrees with this one's (kAgreementSlope; ConfidenceOptions).
   std::array<std::int32_t, 4> neighbours = {0, 0, 0, 0};

@@ -139,11 +139,21 @@ TEST(MatchConfidence, RisesWithAgreementAndSupportAndStaysInZeroOne) {
   m.agreeing = {4, 12, 40, 150};
   const float agreeing = MatchConfidence(m, options);
   EXPECT_GT(agreeing, disagreeing);
+  m.correlation = 0.9f;  // more alike windows
+  EXPECT_GT(MatchConfidence(m, options), agreeing);
+  m.correlation_margin = 0.3f;  // and further ahead of the row's next candidate
+  const float ahead = MatchConfidence(m, options);
+  EXPECT_GT(ahead, agreeing);
+  m.correlation = 0.8f;
+  m.correlation_margin = 0.1f;
+  // The default weighs neither the surface residual nor the potential margin (the census data
+  // term's similarity and the neighbourhood carry what they said, docs/accuracy.md): a match on
+  // its neighbours' plane or with a larger margin is never ranked lower.
   m.surface_residual = 0.0f;
-  EXPECT_GT(MatchConfidence(m, options), agreeing);  // on its neighbours' plane
+  EXPECT_GE(MatchConfidence(m, options), agreeing);
   m.surface_residual = 3.0f;
   m.potential_margin = 900.0f;
-  EXPECT_GT(MatchConfidence(m, options), agreeing);
+  EXPECT_GE(MatchConfidence(m, options), agreeing);
   m.potential_margin = std::numeric_limits<float>::max();  // clamped by the cap, still finite
   const float capped = MatchConfidence(m, options);
   EXPECT_TRUE(std::isfinite(capped));

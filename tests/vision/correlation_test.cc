@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -189,6 +190,154 @@ TEST(ZnccMatcher, RowProfilesEqualThePairByPairZnccBitForBit) {
       }
     }
   }
+}
+
+/// The census similarity straight from its definition (docs/accuracy.md, "The data term"),
+/// written apart from the library: codes with the image edge replicated (and a square reaching
+/// past the edge sees the edge pixels' codes and grey levels), the weighted Hamming
+/// sum over the square around each (rounded) point, weights round(255 exp(-|dI| / gamma)) of the
+/// reference image (the left one unless `reference_right`), 0 for a point outside its image.
+double ReferenceCensus(const cv::Mat& left, const cv::Mat& right, const Eigen::Vector2f& left_point,
+                       const Eigen::Vector2f& right_point, const DataTermOptions& o,
+                       bool reference_right = false) {
+  const auto pixel = [](const cv::Mat& image, int x, int y) {
+    return static_cast<int>(image.at<unsigned char>(std::clamp(y, 0, image.rows - 1),
+                                                    std::clamp(x, 0, image.cols - 1)));
+  };
+  const int r = o.census_window / 2, h = o.aggregation_window / 2;
+  const auto code = [&](const cv::Mat& image, int x, int y) {  // past the edge: the edge's code
+    x = std::clamp(x, 0, image.cols - 1);
+    y = std::clamp(y, 0, image.rows - 1);
+    std::vector<int> bits;
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        if (dx != 0 || dy != 0) bits.push_back(pixel(image, x + dx, y + dy) < pixel(image, x, y));
+      }
+    }
+    return bits;
+  };
+  const auto inside = [](const cv::Mat& image, const Eigen::Vector2f& p) {
+    return p.x() + 0.5f >= 0.0f && p.x() + 0.5f < image.cols && p.y() + 0.5f >= 0.0f &&
+           p.y() + 0.5f < image.rows;
+  };
+  if (!inside(left, left_point) || !inside(right, right_point)) return 0.0;
+  const int lx = static_cast<int>(left_point.x() + 0.5f),
+            ly = static_cast<int>(left_point.y() + 0.5f);
+  const int rx = static_cast<int>(right_point.x() + 0.5f),
+            ry = static_cast<int>(right_point.y() + 0.5f);
+  double cost = 0.0, weight_sum = 0.0;
+  for (int qy = -h; qy <= h; ++qy) {
+    for (int qx = -h; qx <= h; ++qx) {
+      const int difference = reference_right
+                                 ? std::abs(pixel(right, rx + qx, ry + qy) - pixel(right, rx, ry))
+                                 : std::abs(pixel(left, lx + qx, ly + qy) - pixel(left, lx, ly));
+      const double w =
+          o.support_gamma > 0.0 ? std::round(255.0 * std::exp(-difference / o.support_gamma)) : 1.0;
+      const std::vector<int> a = code(left, lx + qx, ly + qy), b = code(right, rx + qx, ry + qy);
+      int hamming = 0;
+      for (std::size_t k = 0; k < a.size(); ++k) hamming += a[k] != b[k];
+      cost += w * hamming;
+      weight_sum += w;
+    }
+  }
+  return 1.0 - 2.0 * cost / (static_cast<double>((2 * r + 1) * (2 * r + 1) - 1) * weight_sum);
+}
+
+DataTermOptions Census(int census_window, int aggregation_window, double gamma) {
+  DataTermOptions o;
+  o.kind = DataTermOptions::Kind::kCensus;
+  o.census_window = census_window;
+  o.aggregation_window = aggregation_window;
+  o.support_gamma = gamma;
+  return o;
+}
+
+TEST(CensusDataTerm, MatchesTheDefinitionOnRandomImages) {
+  std::mt19937 random(kSeed + 21);
+  for (const DataTermOptions& o : {Census(5, 13, 30.0), Census(3, 5, 0.0), Census(5, 1, 10.0)}) {
+    const cv::Mat left = RandomImage(30, 41, &random), right = RandomImage(30, 37, &random);
+    const ZnccMatcher census(left, right, 7, o);
+    std::uniform_real_distribution<float> x(-2.0f, 42.0f), y(-2.0f, 31.0f);
+    for (int n = 0; n < 400; ++n) {
+      const Eigen::Vector2f l(x(random), y(random)), r(x(random), y(random));
+      ASSERT_NEAR(census(l, r), ReferenceCensus(left, right, l, r, o), 1e-6)
+          << l.transpose() << " / " << r.transpose() << " window " << o.aggregation_window;
+      ASSERT_NEAR(census.ReverseSimilarity(l, r), ReferenceCensus(left, right, l, r, o, true),
+                  1e-6);
+    }
+  }
+}
+
+TEST(CensusDataTerm, OneForIdenticalImagesAndPeaksAtTheShift) {
+  std::mt19937 random(kSeed + 22);
+  const cv::Mat image = RandomImage(40, 80, &random);
+  const ZnccMatcher same(image, image, 7, Census(5, 13, 30.0));
+  EXPECT_FLOAT_EQ(same(Eigen::Vector2f(20.0f, 20.0f), Eigen::Vector2f(20.0f, 20.0f)), 1.0f);
+  EXPECT_FLOAT_EQ(same(Eigen::Vector2f(0.0f, 39.0f), Eigen::Vector2f(0.0f, 39.0f)),
+                  1.0f);  // corner
+  // The right image is the left one shifted 9 px to the left: x_r = x_l - 9.
+  const cv::Mat right = image(cv::Rect(9, 0, 71, 40)).clone();
+  const ZnccMatcher census(image, right, 7, Census(5, 13, 30.0));
+  std::vector<float> profile(31);
+  for (const Eigen::Vector2f& p : {Eigen::Vector2f(40.0f, 20.0f), Eigen::Vector2f(30.0f, 8.0f)}) {
+    census.RowProfile(p, 0, 30, profile.data());
+    const auto best = std::max_element(profile.begin(), profile.end()) - profile.begin();
+    EXPECT_EQ(best, 9) << p.transpose();
+    EXPECT_FLOAT_EQ(profile[9], 1.0f);
+  }
+  EXPECT_EQ(census(Eigen::Vector2f(-1.0f, 5.0f), Eigen::Vector2f(3.0f, 5.0f)), 0.0f);  // outside
+  EXPECT_EQ(census(Eigen::Vector2f(std::numeric_limits<float>::quiet_NaN(), 5.0f),
+                   Eigen::Vector2f(3.0f, 5.0f)),
+            0.0f);
+}
+
+TEST(CensusDataTerm, RowProfilesEqualThePairByPairSimilarityBitForBit) {
+  std::mt19937 random(kSeed + 23);
+  for (const DataTermOptions& o : {Census(5, 13, 30.0), Census(3, 7, 0.0)}) {
+    cv::Mat left = RandomImage(40, 90, &random), right = RandomImage(40, 83, &random);
+    left(cv::Rect(30, 10, 20, 15)).setTo(77);
+    const ZnccMatcher census(left, right, 7, o);
+    std::uniform_real_distribution<float> x(-3.0f, 95.0f), y(-3.0f, 43.0f);
+    std::vector<Eigen::Vector2f> points;
+    for (int n = 0; n < 200; ++n) {
+      Eigen::Vector2f p(x(random), y(random));
+      if (n % 3 == 0) p = p.array().round();
+      if (n % 7 == 0) p.x() = std::floor(p.x()) + 0.5f;
+      points.push_back(p);
+    }
+    points.emplace_back(std::numeric_limits<float>::quiet_NaN(), 10.0f);
+    for (const auto& [d_min, d_max] :
+         std::vector<std::pair<int, int>>{{0, 64}, {-20, 20}, {-90, 120}}) {
+      std::vector<float> profile(static_cast<std::size_t>(d_max - d_min + 1));
+      for (const Eigen::Vector2f& p : points) {
+        census.RowProfile(p, d_min, d_max, profile.data());
+        for (int d = d_min; d <= d_max; ++d) {
+          ASSERT_EQ(profile[static_cast<std::size_t>(d - d_min)],
+                    census(p, Eigen::Vector2f(p.x() - static_cast<float>(d), p.y())))
+              << p.transpose() << " d " << d;
+        }
+        census.ReverseRowProfile(p, d_min, d_max, profile.data());
+        for (int d = d_min; d <= d_max; ++d) {
+          const Eigen::Vector2f left_point(std::round(p.x()) + static_cast<float>(d),
+                                           std::round(p.y()));
+          ASSERT_EQ(profile[static_cast<std::size_t>(d - d_min)],
+                    census.ReverseSimilarity(left_point, p))
+              << "reverse: " << p.transpose() << " d " << d;
+        }
+      }
+    }
+  }
+}
+
+TEST(CensusDataTerm, RejectsBadOptions) {
+  const cv::Mat image(20, 20, CV_8UC1, cv::Scalar(10));
+  for (const DataTermOptions& o :
+       {Census(7, 13, 30.0), Census(5, 14, 30.0), Census(5, 33, 30.0), Census(5, 13, -1.0),
+        Census(5, 13, std::numeric_limits<double>::quiet_NaN())}) {
+    EXPECT_FALSE(o.Check().empty());
+    EXPECT_THROW(ZnccMatcher(image, image, 7, o), std::invalid_argument);
+  }
+  EXPECT_TRUE(Census(3, 1, 0.0).Check().empty());
 }
 
 // The window statistics against brute-force integer sums of every window, bit for bit:
