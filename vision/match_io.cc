@@ -68,6 +68,13 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                {"max_disparity", options.candidates.max_disparity},
                                {"max_epipolar_distance_px",
                                 options.candidates.max_epipolar_distance_px}};
+  const bool census = options.data_term.kind == DataTermOptions::Kind::kCensus;
+  json["data_term"] =
+      census ? nlohmann::json{{"kind", "census"},
+                              {"census_window", options.data_term.census_window},
+                              {"aggregation_window", options.data_term.aggregation_window},
+                              {"support_gamma", options.data_term.support_gamma}}
+             : nlohmann::json{{"kind", "zncc"}, {"zncc_window", options.zncc_window}};
   json["decode"] = hnn::DecodeMethodName(options.decode.method);
   json["weight_storage"] = report.solve.weight_storage.empty()
                                ? std::string(hnn::WeightStorageName(options.opencl.storage))

@@ -88,6 +88,7 @@ TEST_F(DocsDefaults, EngineTableEqualsHelpAndReport) {
       {"--init", "/dynamics_options/initial_state"},
       {"--activation", "/dynamics_options/activation"},
       {"--decode", "/decode"},
+      {"--data-term", "/data_term/kind"},
       {"--stop", "/dynamics_options/stop_rule"},
       {"--check-interval", "/dynamics_options/check_interval"},
       {"--min-confidence", "/min_confidence"}};
