@@ -27,11 +27,12 @@ import tempfile
 import numpy as np
 from PIL import Image
 
-# The fitted default (ConfidenceOptions); --features picks a subset to compare.
+# The fitted default (ConfidenceOptions: the census data term's model, which weighs the
+# potential margin and the surface residual 0); --features picks another set, from these and
+# "potential_margin", "surface_residual" (docs/accuracy.md, "Confidence").
 RADII = (3, 6, 12, 24)
-FEATURES = (["potential_margin", "correlation", "correlation_margin"] +
-            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII] +
-            ["surface_residual"])
+FEATURES = (["correlation", "correlation_margin"] +
+            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII])
 
 
 def feature_columns(rows, col, names):

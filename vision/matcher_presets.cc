@@ -128,6 +128,7 @@ std::vector<MatcherPreset> AllPresets() {
   disparity.matcher.candidates.zncc_peaks = false;
   disparity.matcher.candidates.top_k = 8;
   disparity.matcher.energy.support_radius_px = 8.0;
+  disparity.matcher.data_term = DataTermOptions{};  // ZNCC, as measured
   // ZNCC peaks with parabola sub-pixel candidate disparities (K = 8, 8 px, as measured).
   MatcherPreset subpixel = disparity;
   subpixel.name = "hnn-disparity-subpixel";
