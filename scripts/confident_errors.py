@@ -27,7 +27,9 @@ seen in the decoded matches (the median disparities of the neighbours within 8 p
 sides of the pixel's gradient line differ by 2 px or more), whether the match took the nearer
 side's disparity while the pixel's own grey level looks like the farther side (a pixel beside an
 occluding contour that the contour dragged along). `--sgbm-features`: StereoSGBM's validity and
-agreement at uniqueness 10 and 60 (a second matcher's opinion). `--vertex-features`: the ZNCC
+agreement at uniqueness 10 and 60 (a second matcher's opinion). `--zncc-features`: ZNCC 7 x 7
+at the match, its margin and its own winner's agreement (a second data term's opinion for the
+census network). `--vertex-features`: the ZNCC
 parabola's vertex offset and sharpness at the match (an integer disparity whose truth may lie a
 pixel away). Each is scored leave-one-pair-out as `eval` scores: error over the kept
 non-occluded matches at 25 / 50 / 75 % of the left Canny pixels with ground truth.
@@ -379,6 +381,24 @@ def vertex_columns(name, pair, rows, col, xl, yl, disparity):
     return np.stack([np.minimum(np.abs(offset), 1.0), -curvature], axis=1)
 
 
+def zncc_columns(name, pair, rows, col, xl, yl, disparity):
+    """A second data term's opinion, for a network built on the census one: ZNCC 7 x 7 at the
+    match's disparity, its lead over the best ZNCC more than 1 px away, and whether ZNCC's own
+    winner-take-all lies within 1 px of the match."""
+    _, left_path, right_path, _, max_disparity = pair
+    left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    d = np.round(disparity).astype(int)
+    out = np.zeros((len(d), 3))
+    for i in range(len(d)):
+        profile = zncc_profile(left, right, xl[i], yl[i], max_disparity, 0, 0, 3)
+        at = profile[d[i]] if 0 <= d[i] <= max_disparity else -1.0
+        away = np.abs(np.arange(len(profile)) - d[i]) > 1
+        best_away = profile[away].max() if away.any() else -1.0
+        out[i] = (at, at - best_away, float(abs(int(np.argmax(profile)) - d[i]) <= 1))
+    return out
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dataset", default="../shared/datasets")
@@ -392,6 +412,9 @@ def main():
                         help="rank also by StereoSGBM's validity and agreement at uniqueness 10 and 60")
     parser.add_argument("--vertex-features", action="store_true",
                         help="rank also by the ZNCC parabola's vertex offset and sharpness")
+    parser.add_argument("--zncc-features", action="store_true",
+                        help="rank also by ZNCC 7 x 7 at the match, its margin and its own winner's "
+                             "agreement (a second data term's opinion for the census network)")
     parser.add_argument("--share", type=float, default=0.85, help="top share of matches by confidence")
     args = parser.parse_args()
     pairs = {}
@@ -413,6 +436,9 @@ def main():
     if args.vertex_features:
         density_feature_table(pairs, args.cache, "The ZNCC parabola's vertex offset and sharpness",
                               vertex_columns, args.eval_json)
+    if args.zncc_features:
+        density_feature_table(pairs, args.cache, "ZNCC 7 x 7 at the match, its margin, its winner agrees",
+                              zncc_columns, args.eval_json)
 
 
 if __name__ == "__main__":
