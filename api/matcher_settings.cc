@@ -178,6 +178,7 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   }
   if (!given("top-k")) o.candidates.top_k = preset_candidates.top_k;
   o.data_term = chosen->matcher.data_term;
+  o.confidence = chosen->matcher.confidence;
   if (given("data-term")) {
     if (strings["data-term"] == "census") {
       o.data_term.kind = vision::DataTermOptions::Kind::kCensus;
@@ -187,6 +188,7 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
       throw std::invalid_argument("unknown data-term '" + strings["data-term"] +
                                   "' (census or zncc)");
     }
+    o.confidence = vision::ConfidenceOptionsFor(o.data_term);  // the model fitted for it
   }
   if (!given("support-radius")) o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
 
@@ -284,7 +286,10 @@ void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings)
   o.candidates.zncc_peaks = false;
   o.candidates.subpixel_peaks = false;
   // The feature network's data term is ZNCC (hnn-geometry-lr), unless the user asked.
-  if (settings->given.count("data-term") == 0) o.data_term = vision::DataTermOptions{};
+  if (settings->given.count("data-term") == 0) {
+    o.data_term = vision::DataTermOptions{};
+    o.confidence = vision::ConfidenceOptionsFor(o.data_term);
+  }
   if (fallback) {
     if (settings->given.count("top-k") == 0) o.candidates.top_k = fallback->matcher.candidates.top_k;
     if (settings->given.count("support-radius") == 0) {

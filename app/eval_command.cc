@@ -92,6 +92,7 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
       throw std::invalid_argument("--data-term: unknown '" + args.data_term + "' (zncc or census)");
     }
   }
+  if (Given(args, "--data-term")) o.confidence = vision::ConfidenceOptionsFor(o.data_term);
   if (Given(args, "--census-window")) o.data_term.census_window = args.census_window;
   if (Given(args, "--aggregation-window")) o.data_term.aggregation_window = args.aggregation_window;
   if (Given(args, "--support-gamma")) o.data_term.support_gamma = args.support_gamma;

@@ -654,6 +654,7 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
         preset.matcher.candidates.zncc_peaks = false;
         preset.matcher.candidates.subpixel_peaks = false;
         preset.matcher.data_term = DataTermOptions{};  // the feature network's ZNCC
+        preset.matcher.confidence = ConfidenceOptionsFor(preset.matcher.data_term);
         evaluation.notices.push_back(preset.name +
                                      ": the disparity network needs rectified rows; the warped "
                                      "run uses the feature-vs-feature network");

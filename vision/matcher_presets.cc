@@ -99,6 +99,7 @@ MatcherPreset AccurateDefaultPreset() {
   preset.matcher.data_term.census_window = 5;
   preset.matcher.data_term.aggregation_window = 13;
   preset.matcher.data_term.support_gamma = 30.0;
+  preset.matcher.confidence = CensusConfidenceOptions();  // fitted for it (docs/accuracy.md)
   // Unrectified pairs (eval --warped, match/pick with a calibration): snap the right point onto
   // its epipolar line, then the parabola along the line. Measured on the five warped pairs:
   // 92.2 % within 1 px -> 93.7 % (snap) -> 94.8 % (snap + sub-pixel), docs/accuracy.md.
@@ -129,6 +130,7 @@ std::vector<MatcherPreset> AllPresets() {
   disparity.matcher.candidates.top_k = 8;
   disparity.matcher.energy.support_radius_px = 8.0;
   disparity.matcher.data_term = DataTermOptions{};  // ZNCC, as measured
+  disparity.matcher.confidence = ConfidenceOptions{};
   // ZNCC peaks with parabola sub-pixel candidate disparities (K = 8, 8 px, as measured).
   MatcherPreset subpixel = disparity;
   subpixel.name = "hnn-disparity-subpixel";

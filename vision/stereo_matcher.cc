@@ -52,6 +52,23 @@ std::string ConfidenceOptions::Check() const {
   return {};
 }
 
+ConfidenceOptions CensusConfidenceOptions() {
+  ConfidenceOptions o;
+  o.bias = -4.84755;
+  o.w_potential_margin = 0.0;
+  o.w_correlation = 5.57807;
+  o.w_correlation_margin = 3.39316;
+  o.w_agreement = {0.0336344, -0.702207, 1.2805, 1.31364};
+  o.w_neighbours = {0.0620927, 0.0178209, 0.00235701, 0.0019099};
+  o.w_surface_residual = 0.0;
+  return o;
+}
+
+ConfidenceOptions ConfidenceOptionsFor(const DataTermOptions& data_term) {
+  return data_term.kind == DataTermOptions::Kind::kCensus ? CensusConfidenceOptions()
+                                                          : ConfidenceOptions{};
+}
+
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options) {
   const double margin = std::min<double>(match.potential_margin, options.potential_margin_cap);
   double z = options.bias + options.w_potential_margin * margin +

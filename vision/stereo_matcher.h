@@ -55,22 +55,21 @@ inline constexpr float kSurfaceResidualCapPx = 5.0f;
 /// (kAgreementSlope; 0 with no neighbour); surface_residual = the distance (px) of this match's
 /// displacement from the plane fitted to its neighbours' within kSurfaceRadiusPx (capped at
 /// kSurfaceResidualCapPx). A wrong winner is one its surface does not back, and dense, agreeing
-/// neighbourhoods are textured surfaces the network resolved. Defaults: fitted by logistic
-/// regression (correct = within 1 px of the ground truth) on the five shared Middlebury pairs with
-/// hnn-default and its census data term (scripts/fit_confidence.py; figures in docs/accuracy.md).
-/// The potential margin and the surface residual are kept as features but weigh 0: fitted with the
-/// rest, their weights came out with the sign that would rank a better-supported match lower, for
-/// no gain out of sample.
+/// neighbourhoods are textured surfaces the network resolved. Weights fitted by logistic
+/// regression (correct = within 1 px of the ground truth) on the five shared Middlebury pairs
+/// (scripts/fit_confidence.py; figures in docs/accuracy.md), one model per data term, since the
+/// similarity is one of the inputs: these defaults are the ZNCC data term's (the feature
+/// network's: `match --calib`, `pick`, `serve`); CensusConfidenceOptions() is hnn-default's.
 struct ConfidenceOptions {
-  double bias = -4.84755;
-  double w_potential_margin = 0.0;
-  double w_correlation = 5.57807;
-  double w_correlation_margin = 3.39316;
-  std::array<double, 4> w_agreement = {0.0336344, -0.702207, 1.2805,
-                                       1.31364};  ///< per kAgreementRadiiPx
-  std::array<double, 4> w_neighbours = {0.0620927, 0.0178209, 0.00235701,
-                                        0.0019099};  ///< per kAgreementRadiiPx
-  double w_surface_residual = 0.0;                   ///< per px
+  double bias = -7.90734;
+  double w_potential_margin = 5.97741e-05;
+  double w_correlation = 4.22575;
+  double w_correlation_margin = 0.399208;
+  std::array<double, 4> w_agreement = {0.191842, 0.748735, 1.78553,
+                                       2.14769};  ///< per kAgreementRadiiPx
+  std::array<double, 4> w_neighbours = {-0.000448942, 0.0182109, 0.0133881,
+                                        0.00269549};  ///< per kAgreementRadiiPx
+  double w_surface_residual = -0.058943;              ///< per px
   double potential_margin_cap = 1e4;  ///< clamps absurd margins (none seen above ~1,500)
   std::string Check() const;
 };
@@ -117,6 +116,14 @@ struct StereoMatch {
   /// |displacement - the plane of the neighbours' displacements within kSurfaceRadiusPx| (px).
   float surface_residual = kSurfaceResidualCapPx;
 };
+
+/// The confidence model fitted for the census data term (hnn-default, DataTermOptions): it weighs
+/// the potential margin and the surface residual 0 - fitted with the rest, their weights came
+/// out with the sign that would rank a better-supported match lower, for no gain out of sample.
+ConfidenceOptions CensusConfidenceOptions();
+
+/// The confidence model fitted for `data_term` (ConfidenceOptions{} for ZNCC).
+ConfidenceOptions ConfidenceOptionsFor(const DataTermOptions& data_term);
 
 /// The confidence of `match` from its potential_margin, correlations and neighbourhood counts.
 float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options);

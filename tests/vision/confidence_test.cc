@@ -125,42 +125,50 @@ TEST(CountAgreeingNeighbours, LoneAndEmpty) {
   EXPECT_EQ(one[0].agreeing[2], 0);
 }
 
+// Both fitted models (ZNCC's, the in-class default, and the census data term's, hnn-default's).
 TEST(MatchConfidence, RisesWithAgreementAndSupportAndStaysInZeroOne) {
-  const ConfidenceOptions options;
-  ASSERT_TRUE(options.Check().empty()) << options.Check();
-  StereoMatch m = MatchAt(10.0f, 10.0f, -5.0f, 0.0f);
-  m.potential_margin = 200.0f;
-  m.correlation = 0.8f;
-  m.correlation_margin = 0.1f;
-  m.neighbours = {4, 12, 40, 150};
-  m.agreeing = {1, 3, 10, 40};
-  m.surface_residual = 3.0f;
-  const float disagreeing = MatchConfidence(m, options);
-  m.agreeing = {4, 12, 40, 150};
-  const float agreeing = MatchConfidence(m, options);
-  EXPECT_GT(agreeing, disagreeing);
-  m.correlation = 0.9f;  // more alike windows
-  EXPECT_GT(MatchConfidence(m, options), agreeing);
-  m.correlation_margin = 0.3f;  // and further ahead of the row's next candidate
-  const float ahead = MatchConfidence(m, options);
-  EXPECT_GT(ahead, agreeing);
-  m.correlation = 0.8f;
-  m.correlation_margin = 0.1f;
-  // The default weighs neither the surface residual nor the potential margin (the census data
-  // term's similarity and the neighbourhood carry what they said, docs/accuracy.md): a match on
-  // its neighbours' plane or with a larger margin is never ranked lower.
-  m.surface_residual = 0.0f;
-  EXPECT_GE(MatchConfidence(m, options), agreeing);
-  m.surface_residual = 3.0f;
-  m.potential_margin = 900.0f;
-  EXPECT_GE(MatchConfidence(m, options), agreeing);
-  m.potential_margin = std::numeric_limits<float>::max();  // clamped by the cap, still finite
-  const float capped = MatchConfidence(m, options);
-  EXPECT_TRUE(std::isfinite(capped));
-  for (const float c : {disagreeing, agreeing, capped}) {
-    EXPECT_GE(c, 0.0f);
-    EXPECT_LE(c, 1.0f);
+  for (const ConfidenceOptions& options : {ConfidenceOptions{}, CensusConfidenceOptions()}) {
+    ASSERT_TRUE(options.Check().empty()) << options.Check();
+    StereoMatch m = MatchAt(10.0f, 10.0f, -5.0f, 0.0f);
+    m.potential_margin = 200.0f;
+    m.correlation = 0.8f;
+    m.correlation_margin = 0.1f;
+    m.neighbours = {4, 12, 40, 150};
+    m.agreeing = {1, 3, 10, 40};
+    m.surface_residual = 3.0f;
+    const float disagreeing = MatchConfidence(m, options);
+    m.agreeing = {4, 12, 40, 150};
+    const float agreeing = MatchConfidence(m, options);
+    EXPECT_GT(agreeing, disagreeing);
+    m.correlation = 0.9f;  // more alike windows
+    EXPECT_GT(MatchConfidence(m, options), agreeing);
+    m.correlation_margin = 0.3f;  // and further ahead of the row's next candidate
+    EXPECT_GT(MatchConfidence(m, options), agreeing);
+    m.correlation = 0.8f;
+    m.correlation_margin = 0.1f;
+    // On its neighbours' plane, or with a larger lead in support: never ranked lower (the census
+    // model weighs these two 0, the ZNCC model raises the confidence with them).
+    m.surface_residual = 0.0f;
+    EXPECT_GE(MatchConfidence(m, options), agreeing);
+    if (options.w_surface_residual != 0.0) EXPECT_GT(MatchConfidence(m, options), agreeing);
+    m.surface_residual = 3.0f;
+    m.potential_margin = 900.0f;
+    EXPECT_GE(MatchConfidence(m, options), agreeing);
+    if (options.w_potential_margin != 0.0) EXPECT_GT(MatchConfidence(m, options), agreeing);
+    m.potential_margin = std::numeric_limits<float>::max();  // clamped by the cap, still finite
+    const float capped = MatchConfidence(m, options);
+    EXPECT_TRUE(std::isfinite(capped));
+    for (const float c : {disagreeing, agreeing, capped}) {
+      EXPECT_GE(c, 0.0f);
+      EXPECT_LE(c, 1.0f);
+    }
   }
+  // Each data term gets the model fitted for it.
+  DataTermOptions census;
+  census.kind = DataTermOptions::Kind::kCensus;
+  EXPECT_EQ(ConfidenceOptionsFor(census).bias, CensusConfidenceOptions().bias);
+  EXPECT_EQ(ConfidenceOptionsFor(DataTermOptions{}).bias, ConfidenceOptions{}.bias);
+  EXPECT_NE(CensusConfidenceOptions().bias, ConfidenceOptions{}.bias);
 }
 
 TEST(ConfidenceOptions, RefusesNonFiniteWeights) {
