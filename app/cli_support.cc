@@ -174,9 +174,10 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
                   "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
                   "first GPU, else the first device)");
   cmd->add_option("--preset", preset,
-                  "Named settings: hnn-default (geometry x similarity compatibility and a "
-                  "left-right ZNCC check; measured best, docs/accuracy.md) or hnn-thesis (the "
-                  "thesis's eq. 6.7 additive compatibility, no check)")
+                  "Named settings: hnn-default (geometry x similarity compatibility, the census "
+                  "data term on rectified pairs and a left-right check; measured best, "
+                  "docs/accuracy.md) or hnn-thesis (the thesis's eq. 6.7 additive compatibility, "
+                  "ZNCC, no check)")
       ->capture_default_str();
   objective_option =
       cmd->add_option("--objective", objective,

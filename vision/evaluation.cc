@@ -657,7 +657,7 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
         preset.matcher.confidence = ConfidenceOptionsFor(preset.matcher.data_term);
         evaluation.notices.push_back(preset.name +
                                      ": the disparity network needs rectified rows; the warped "
-                                     "run uses the feature-vs-feature network");
+                                     "run uses the feature-vs-feature network (ZNCC data term)");
       }
       MethodMatches matches;
       matches.method = preset.name;
