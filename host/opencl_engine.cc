@@ -586,6 +586,11 @@ class DeviceNetwork {
     if (groups <= 0) {
       groups = gpu ? 1 : std::clamp(L.n_rows / kResidentRowsPerGroup, 1, static_cast<int>(units));
     }
+    // One on a GPU, whatever was asked: OpenCL 1.2 does not make one work-group's global writes
+    // visible to another's, and on an H200 (NVIDIA's driver) several groups read stale state -
+    // other steps and energies (sparse-5000: 29 and 301 steps with 32 and 132 groups against
+    // 19) - where on a CPU device they are bit for bit one group's run (docs/engine.md).
+    if (gpu) groups = 1;
     // kAuto on a CPU device: with a group per core the device loop steps as the host loop's
     // launches do, without their launch and round trips, so it takes every network it can
     // (Teddy 5,000 features: 2.2-2.3 ms against 3.2-3.3 on the host loop; all of Teddy the same
