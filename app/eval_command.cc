@@ -38,7 +38,7 @@ struct EvalArgs {
   double lr_tolerance = 1.0;
   std::string data_term;
   int census_window = 5, aggregation_window = 13;
-  double support_gamma = 30.0;
+  double support_gamma = 30.0, subpixel_min_offset = 0.1;
   CLI::App* cmd = nullptr;
 };
 
@@ -76,6 +76,9 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
   if (Given(args, "--min-correlation")) o.candidates.min_correlation = args.min_correlation;
   if (Given(args, "--lr-check")) preset.refinement.left_right_check = args.left_right_check;
   if (Given(args, "--subpixel")) preset.refinement.subpixel = args.subpixel;
+  if (Given(args, "--subpixel-min-offset")) {
+    preset.refinement.subpixel_min_offset_px = args.subpixel_min_offset;
+  }
   if (Given(args, "--epipolar-snap")) preset.refinement.epipolar_snap = args.epipolar_snap;
   if (Given(args, "--epipolar-subpixel")) {
     preset.refinement.epipolar_subpixel = args.epipolar_subpixel;
@@ -246,6 +249,9 @@ void AddEvalCommand(CLI::App& app) {
   cmd->add_option("--min-correlation", args->min_correlation, "First preset: ZNCC gate");
   cmd->add_option("--lr-check", args->left_right_check, "First preset: left-right check (0/1)");
   cmd->add_option("--subpixel", args->subpixel, "First preset: sub-pixel parabola fit (0/1)");
+  cmd->add_option("--subpixel-min-offset", args->subpixel_min_offset,
+                  "First preset: the sub-pixel fit leaves a match whose vertex lies closer than "
+                  "this (px) to its whole pixel (hnn-default 0.1)");
   cmd->add_option("--epipolar-snap", args->epipolar_snap,
                   "First preset, unrectified (--warped) runs: move right points onto the epipolar "
                   "line (0/1)");

@@ -22,9 +22,13 @@ struct RefinementOptions {
   /// only when that lands within `left_right_tolerance_px` of its left point.
   bool left_right_check = false;
   double left_right_tolerance_px = 1.0;  ///< px
-  /// Sub-pixel: fit a parabola to ZNCC at the right point and its two neighbours along the row
-  /// (rectified pairs only) and move the right point to the vertex (at most 0.5 px).
+  /// Sub-pixel: fit a parabola to the similarity (the data term's) at the right point and its two
+  /// neighbours along the row (rectified pairs only) and move the right point to the vertex (at
+  /// most 0.5 px).
   bool subpixel = false;
+  /// ... unless the vertex lies less than this (px) from the whole pixel: then the match keeps
+  /// its integer disparity (a parabola through three samples does not resolve such a lean).
+  double subpixel_min_offset_px = 0.0;
   /// Unrectified pairs: move the right point to the foot of its perpendicular on the left
   /// point's epipolar line F x (a right edge pixel lies up to 0.7 px off the line it belongs to).
   bool epipolar_snap = false;

@@ -167,6 +167,48 @@ TEST(Refinement, SubpixelParabolaReducesTheErrorOfAFractionalShift) {
   EXPECT_LT(mean_error(report), 0.2);
 }
 
+// The floor of the sub-pixel fit (hnn-default: 0.1 px): a match moves by at least the floor or
+// not at all, so on a whole-pixel shift some keep their integer disparity exactly (where the
+// parabola through three samples of a peak leans less than 0.1 px) and none ends far off; a
+// shift of 6.4 px still moves most; for both data terms.
+TEST(Refinement, SubpixelFloorKeepsWholePixelMatchesAndMovesFractionalOnes) {
+  for (const bool census : {false, true}) {
+    MatcherOptions matcher;
+    matcher.candidates.rectified = true;
+    if (census) matcher.data_term.kind = DataTermOptions::Kind::kCensus;
+    RefinementOptions refinement;
+    refinement.subpixel = true;
+    refinement.subpixel_min_offset_px = 0.1;
+    ASSERT_TRUE(refinement.Check().empty());
+    const SyntheticPair whole = MakePair(6.0, 13);
+    MatchReport report;
+    for (const Eigen::Vector2f& p : GridPoints(whole.left.cols, whole.left.rows, 10, 6)) {
+      report.matches.push_back({p, Eigen::Vector2f(p.x() - 6.0f, p.y()), 1.0f, 0, 0});
+    }
+    const MatchReport before = report;
+    RefineMatches(whole.left, whole.right, nullptr, matcher, refinement, &report);
+    ASSERT_EQ(report.matches.size(), before.matches.size());
+    int kept = 0;
+    for (std::size_t i = 0; i < report.matches.size(); ++i) {
+      const float move = std::abs(report.matches[i].right.x() - before.matches[i].right.x());
+      kept += move == 0.0f;
+      EXPECT_TRUE(move == 0.0f || (move >= 0.1f - 1e-5f && move <= 0.5f))
+          << "census " << census << " moved " << move;
+    }
+    EXPECT_GT(kept, 0) << "census " << census;
+    const SyntheticPair fractional = MakePair(6.4, 13);
+    int moved = 0;
+    RefineMatches(fractional.left, fractional.right, nullptr, matcher, refinement, &report);
+    for (std::size_t i = 0; i < report.matches.size(); ++i) {
+      moved += report.matches[i].right.x() != before.matches[i].right.x();
+    }
+    EXPECT_GT(moved, static_cast<int>(report.matches.size()) / 2) << "census " << census;
+  }
+  RefinementOptions bad;
+  bad.subpixel_min_offset_px = 0.7;
+  EXPECT_FALSE(bad.Check().empty());
+}
+
 TEST(Refinement, EpipolarSnapAndSubpixelAlongTheLineOnAWarpedPair) {
   // Rectified pair at d = 6.4, right image then warped by H (3 deg rotation, a shift): the true
   // right point is H (x - 6.4, y) and F = H^-T F_rect with F_rect: y_r = y_l.
