@@ -276,9 +276,20 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
       // Parabola through ZNCC at x - 1, x, x + 1: vertex offset (c- - c+) / (2 (c- - 2 c0 + c+)).
       const Eigen::Vector2f step(1.0f, 0.0f);
       const Eigen::Vector2f right(std::round(match.right.x()), std::round(match.right.y()));
-      const double before = zncc(match.left, right - step);
-      const double centre = zncc(match.left, right);
-      const double after = zncc(match.left, right + step);
+      double before = 0.0, centre = 0.0, after = 0.0;
+      const float d = match.left.x() - right.x();
+      if (right.y() == match.left.y() && d == std::round(d) && std::abs(d) < 1e6f) {
+        // The three as one row profile (one set of support weights for the census term; the
+        // same values as pair by pair, vision/correlation.h): disparities d + 1, d, d - 1.
+        float three[3];
+        const int level = static_cast<int>(d);
+        zncc.RowProfile(match.left, level - 1, level + 1, three);
+        before = three[2], centre = three[1], after = three[0];
+      } else {
+        before = zncc(match.left, right - step);
+        centre = zncc(match.left, right);
+        after = zncc(match.left, right + step);
+      }
       const double curvature = before - 2.0 * centre + after;
       if (curvature < 0.0) {
         const double offset = std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
