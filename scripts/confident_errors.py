@@ -362,13 +362,18 @@ def sgbm_columns(name, pair, rows, col, xl, yl, disparity):
     return np.stack(out, axis=1).astype(np.float64)
 
 
+def grey_pair(pair):
+    """The pair's left and right images as float32 grey levels, and its disparity range."""
+    _, left_path, right_path, _, max_disparity = pair
+    return (cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32),
+            cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32), max_disparity)
+
+
 def vertex_columns(name, pair, rows, col, xl, yl, disparity):
     """The parabola through ZNCC 7 x 7 at the match's disparity d and d +- 1: how far its vertex
     lies from d (0-1 px) and how sharp it is - does an integer disparity whose truth may lie a
     pixel away rank lower?"""
-    _, left_path, right_path, _, max_disparity = pair
-    left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
-    right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    left, right, max_disparity = grey_pair(pair)
     d = np.round(disparity).astype(int)
     score = np.zeros((len(d), 3))
     for i in range(len(d)):
@@ -385,9 +390,7 @@ def zncc_columns(name, pair, rows, col, xl, yl, disparity):
     """A second data term's opinion, for a network built on the census one: ZNCC 7 x 7 at the
     match's disparity, its lead over the best ZNCC more than 1 px away, and whether ZNCC's own
     winner-take-all lies within 1 px of the match."""
-    _, left_path, right_path, _, max_disparity = pair
-    left = cv2.imread(left_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
-    right = cv2.imread(right_path, cv2.IMREAD_GRAYSCALE).astype(np.float32)
+    left, right, max_disparity = grey_pair(pair)
     d = np.round(disparity).astype(int)
     out = np.zeros((len(d), 3))
     for i in range(len(d)):

@@ -322,10 +322,6 @@ ZnccMatcher::ZnccMatcher(const cv::Mat& left, const cv::Mat& right, int window,
   }
 }
 
-bool ZnccMatcher::AggregationInside(int x, int y, const cv::Mat& image) const {
-  return x >= 0 && y >= 0 && x < image.cols && y < image.rows;
-}
-
 std::int64_t ZnccMatcher::SupportWeights(const cv::Mat& grey, int x, int y,
                                          std::uint16_t* weights) const {
   const int h = aggregation_radius_, side = 2 * h + 1;
@@ -371,7 +367,6 @@ void ZnccMatcher::CensusRun(bool reference_left, int fx, int fy, int ox_first, i
 }
 
 float ZnccMatcher::CensusSimilarity(int lx, int ly, int rx, int ry, bool reference_left) const {
-  if (!AggregationInside(lx, ly, left_) || !AggregationInside(rx, ry, right_)) return 0.0f;
   float similarity = 0.0f;
   if (reference_left) {
     CensusRun(true, lx, ly, rx, ry, 1, &similarity);
@@ -563,19 +558,16 @@ void ZnccMatcher::CensusRowProfile(const Eigen::Vector2f& left_point, int d_min,
   // inside and whose right x steps down by one pixel form runs, each one kernel call (the same
   // integer costs operator() computes, so the same floats); the rest are 0 (outside).
   int lx = 0, ly = 0;
-  const bool left_inside =
-      RoundToPixel(left_point, left_, &lx, &ly) && AggregationInside(lx, ly, left_);
+  const bool left_inside = RoundToPixel(left_point, left_, &lx, &ly);
+  const auto right_pixel = [&](int level, int* x, int* y) {
+    return left_inside &&
+           RoundToPixel(Eigen::Vector2f(left_point.x() - static_cast<float>(level), left_point.y()),
+                        right_, x, y);
+  };
   thread_local std::vector<float> run_similarity;
   int d = d_min;
   while (d <= d_max) {
     int rx = 0, ry = 0;
-    const auto right_pixel = [&](int level, int* x, int* y) {
-      return left_inside &&
-             RoundToPixel(
-                 Eigen::Vector2f(left_point.x() - static_cast<float>(level), left_point.y()),
-                 right_, x, y) &&
-             AggregationInside(*x, *y, right_);
-    };
     if (!right_pixel(d, &rx, &ry)) {
       out[d - d_min] = 0.0f;
       ++d;
@@ -605,9 +597,8 @@ void ZnccMatcher::ReverseRowProfile(const Eigen::Vector2f& right_point, int d_mi
     // lies inside are one run of consecutive x, one kernel call with the right square fixed.
     const float x0 = std::round(right_point.x()), y0 = std::round(right_point.y());
     int rx = 0, ry = 0;
-    const bool right_inside = RoundToPixel(right_point, right_, &rx, &ry) &&
-                              AggregationInside(rx, ry, right_) && std::abs(x0) < 1e6f &&
-                              std::abs(y0) < 1e6f;
+    const bool right_inside =
+        RoundToPixel(right_point, right_, &rx, &ry) && std::abs(x0) < 1e6f && std::abs(y0) < 1e6f;
     const int ly = right_inside ? static_cast<int>(y0) : 0;
     const int x_base = right_inside ? static_cast<int>(x0) : 0;
     int d_first = d_max + 1, d_last = d_min - 1;

@@ -93,9 +93,8 @@ class ZnccMatcher {
   float Normalise(float dot, const float* left_stats, const float* right_stats) const;
 
   // Census. `reference_left`: whose support weights (left: forward, right: reverse search).
-  // Pixels (integers); 0 unless both lie inside their images.
+  // Pixels (integers) inside their images (the arrays are padded for their squares).
   float CensusSimilarity(int lx, int ly, int rx, int ry, bool reference_left) const;
-  bool AggregationInside(int x, int y, const cv::Mat& image) const;
   // The support weights of the aggregation square centred at (x, y) of `grey`; returns their sum.
   std::int64_t SupportWeights(const cv::Mat& grey, int x, int y, std::uint16_t* weights) const;
   // Census similarities of the fixed square at (fx, fy) of the reference image against the
