@@ -193,8 +193,12 @@ class ModbusServerLink final : public RobotLink {
       while (!events_.empty()) {
         const CommandEvent& next = events_.front();
         if (next.command == mb::kCommandTrigger && !IsDuplicateLocked(next.request_sequence)) {
+          // A PLC that reconnected (its result dropped) and triggered again before this wait
+          // began: the result was lost with the peer, not left unacknowledged. The trigger
+          // stays queued for the next WaitForTrigger either way.
+          if (result_dropped_) return AckKind::kPeerLost;
           // The PLC moved on to a new request without acknowledging this one: the result was
-          // not acknowledged; the trigger stays queued for the next WaitForTrigger.
+          // not acknowledged.
           Log("modbus-server: new trigger (request " + std::to_string(next.request_sequence) +
               ") before the acknowledge of request " + std::to_string(served_sequence_));
           return AckKind::kTimeout;

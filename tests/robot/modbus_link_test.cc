@@ -268,6 +268,30 @@ TEST(ModbusServerLink, ReconnectDropsThePendingResult) {
   EXPECT_EQ(retry.request_sequence, 11u);
 }
 
+// The race a loaded CI machine hit: the PLC dies, reconnects and triggers again before the
+// cell loop even waits for the acknowledge. The dropped result is a lost peer, not an
+// acknowledge timeout, and the new trigger stays queued for the next cycle.
+TEST(ModbusServerLink, ReconnectAndTriggerBeforeTheWaitIsAPeerLost) {
+  auto link = OpenServer();
+  const int port = PortOf(*link);
+  {
+    Plc plc(port);
+    plc.Trigger(21);
+    ASSERT_EQ(link->WaitForTrigger(milliseconds(2000)).kind, TriggerKind::kTrigger);
+    link->Publish(Cycle(21, {Pick(1, 10, 20, 30, 40)}));
+    EXPECT_EQ(plc.Read(mb::kStatusRegister), mb::kStatusResultReady);
+  }
+  ASSERT_TRUE(Eventually([&] { return link->Stats().peer_connected == false; }));
+  Plc again(port);
+  ASSERT_TRUE(again.connected());
+  ASSERT_TRUE(Eventually([&] { return link->Stats().dropped_on_reconnect == 1; }));
+  again.Trigger(21);  // answered after the server queued it: queued before the wait below
+  EXPECT_EQ(link->WaitForAcknowledge(milliseconds(2000)), AckKind::kPeerLost);
+  const Trigger retry = link->WaitForTrigger(milliseconds(2000));
+  EXPECT_EQ(retry.kind, TriggerKind::kTrigger);
+  EXPECT_EQ(retry.request_sequence, 21u);
+}
+
 TEST(ModbusServerLink, AMonitorConnectingDoesNotDropTheResult) {
   auto link = OpenServer();
   Plc plc(PortOf(*link));
