@@ -68,9 +68,11 @@ def expect_exception(response, code, what):
 
 def kill_and_reconnect(work):
     # The acknowledge timeout far above any stall: a PLC process that reads its result and is
-    # killed must count as a lost peer, not as an acknowledge timeout. With 5 s, one CI run on
-    # a loaded 2-core machine (a build beside it) saw the timeout first: ack_timeouts 1,
-    # peer_lost 1.
+    # killed must count as a lost peer, not as an acknowledge timeout. Two CI runs on a loaded
+    # 2-core machine reported ack_timeouts 1, peer_lost 1; the second (with this 60 s timeout)
+    # showed the cause: the PLC reconnected and triggered again before serve began waiting for
+    # the acknowledge, and that new trigger was taken for an unacknowledged result. Fixed in
+    # robot/modbus_link.cc; tests/robot/modbus_link_test.cc reproduces the order.
     serve, report = start_serve(work, "kill", OBJECTS,
                                 ["--io-timeout", "300", "--ack-timeout", "60"])
     try:
