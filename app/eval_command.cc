@@ -38,7 +38,7 @@ struct EvalArgs {
   double lr_tolerance = 1.0;
   std::string data_term;
   int census_window = 5, aggregation_window = 13;
-  double support_gamma = 30.0, subpixel_min_offset = 0.1;
+  double support_gamma = 20.0, subpixel_min_offset = 0.1;
   CLI::App* cmd = nullptr;
 };
 
@@ -272,7 +272,7 @@ void AddEvalCommand(CLI::App& app) {
                   "over, odd 1..31 (hnn-default 13)");
   cmd->add_option("--support-gamma", args->support_gamma,
                   "First preset, census data term: adaptive support weight exp(-|dI| / gamma), "
-                  "grey levels; 0 = box (hnn-default 30)");
+                  "grey levels; 0 = box (hnn-default 20)");
   cmd->add_option("--subpixel-peaks", args->subpixel_peaks,
                   "First preset, disparity network: parabola sub-pixel candidate disparities (0/1)");
   cmd->callback([args] { RunEval(*args); });
