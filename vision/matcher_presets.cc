@@ -243,10 +243,11 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window, matcher.data_term);
   const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
   const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
-  std::vector<StereoMatch> kept;
-  kept.reserve(report->matches.size());
-  std::vector<float> reverse_profile;
-  for (StereoMatch match : report->matches) {
+  // Each match is checked and refined on its own (the matcher's scratch is per thread): the
+  // matches in parallel, then the kept ones in their order.
+  std::vector<StereoMatch>& matches = report->matches;
+  std::vector<unsigned char> keep(matches.size(), 0);
+  const auto refine = [&](StereoMatch& match, std::vector<float>& reverse_profile) -> bool {
     if (refinement.left_right_check) {
       // The reverse search: the best left point for this right point (winner-take-all ZNCC).
       float best = -std::numeric_limits<float>::infinity();
@@ -272,7 +273,7 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
       }
       if (!(std::abs(best_left.x() - match.left.x()) <= refinement.left_right_tolerance_px &&
             std::abs(best_left.y() - match.left.y()) <= refinement.left_right_tolerance_px + 0.5f)) {
-        continue;
+        return false;
       }
     }
     if (refinement.subpixel && rectified) {
@@ -301,9 +302,21 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
         }
       }
     }
-    kept.push_back(match);
+    return true;
+  };
+  cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
+    std::vector<float> reverse_profile;
+    for (int i = range.start; i < range.end; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      keep[k] = refine(matches[k], reverse_profile) ? 1 : 0;
+    }
+  });
+  std::vector<StereoMatch> kept;
+  kept.reserve(matches.size());
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (keep[k]) kept.push_back(matches[k]);
   }
-  report->matches = std::move(kept);
+  matches = std::move(kept);
   refine_along_epipolar_lines();
 }
 
