@@ -13,6 +13,7 @@
 #include "host/decode.h"
 #include "vision/eval_plot.h"
 #include "vision/evaluation.h"
+#include "vision/match_io.h"
 #include "vision/matcher_presets.h"
 #include "vision/middlebury.h"
 #include "vision/overlay.h"
@@ -39,6 +40,7 @@ struct EvalArgs {
   std::string data_term;
   int census_window = 5, aggregation_window = 13;
   double support_gamma = 20.0, subpixel_min_offset = 0.1;
+  double energy_a = 2.0, energy_t = 1.5;
   CLI::App* cmd = nullptr;
 };
 
@@ -99,6 +101,8 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
   if (Given(args, "--census-window")) o.data_term.census_window = args.census_window;
   if (Given(args, "--aggregation-window")) o.data_term.aggregation_window = args.aggregation_window;
   if (Given(args, "--support-gamma")) o.data_term.support_gamma = args.support_gamma;
+  if (Given(args, "--A")) o.energy.A = args.energy_a;
+  if (Given(args, "--T")) o.energy.T = args.energy_t;
   return preset;
 }
 
@@ -152,6 +156,9 @@ void RunEval(EvalArgs& args) {
                          : "feature"},
          {"top_k", preset.matcher.candidates.top_k},
          {"support_radius_px", preset.matcher.energy.support_radius_px},
+         {"data_term", vision::DataTermJson(preset.matcher)},
+         {"A", preset.matcher.energy.A},
+         {"T", preset.matcher.energy.T},
          {"threshold", preset.matcher.decode.threshold},
          {"max_features", preset.matcher.features.max_features},
          {"left_right_check", preset.refinement.left_right_check},
@@ -275,6 +282,11 @@ void AddEvalCommand(CLI::App& app) {
                   "grey levels; 0 = box (hnn-default 20)");
   cmd->add_option("--subpixel-peaks", args->subpixel_peaks,
                   "First preset, disparity network: parabola sub-pixel candidate disparities (0/1)");
+  cmd->add_option("--A", args->energy_a,
+                  "First preset: energy weight of the compatibility term (eq. 6.5; hnn-default 2)");
+  cmd->add_option("--T", args->energy_t,
+                  "First preset: disparity-gradient scale of the compatibility, g = 2 exp(-DG / T) "
+                  "- 1 (eq. 6.8; hnn-default 1.5)");
   cmd->callback([args] { RunEval(*args); });
 }
 

@@ -15,6 +15,16 @@ std::string MatchesCsv(const MatchReport& report) {
   return text;
 }
 
+nlohmann::json DataTermJson(const MatcherOptions& options) {
+  if (options.data_term.kind == DataTermOptions::Kind::kCensus) {
+    return {{"kind", "census"},
+            {"census_window", options.data_term.census_window},
+            {"aggregation_window", options.data_term.aggregation_window},
+            {"support_gamma", options.data_term.support_gamma}};
+  }
+  return {{"kind", "zncc"}, {"zncc_window", options.zncc_window}};
+}
+
 nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& options) {
   nlohmann::json json;
   json["engine"] = report.solve.engine;
@@ -68,13 +78,7 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                {"max_disparity", options.candidates.max_disparity},
                                {"max_epipolar_distance_px",
                                 options.candidates.max_epipolar_distance_px}};
-  const bool census = options.data_term.kind == DataTermOptions::Kind::kCensus;
-  json["data_term"] =
-      census ? nlohmann::json{{"kind", "census"},
-                              {"census_window", options.data_term.census_window},
-                              {"aggregation_window", options.data_term.aggregation_window},
-                              {"support_gamma", options.data_term.support_gamma}}
-             : nlohmann::json{{"kind", "zncc"}, {"zncc_window", options.zncc_window}};
+  json["data_term"] = DataTermJson(options);
   json["decode"] = hnn::DecodeMethodName(options.decode.method);
   json["weight_storage"] = report.solve.weight_storage.empty()
                                ? std::string(hnn::WeightStorageName(options.opencl.storage))

@@ -14,4 +14,8 @@ std::string MatchesCsv(const MatchReport& report);
 /// The REPORT.json object: engine, device, sizes, iterations, energies, timing_ms and more.
 nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& options);
 
+/// The data term's settings as REPORT.json and EVAL.json record them: {"kind": "census",
+/// "census_window", "aggregation_window", "support_gamma"} or {"kind": "zncc", "zncc_window"}.
+nlohmann::json DataTermJson(const MatcherOptions& options);
+
 }  // namespace hnnstereo::vision

@@ -89,6 +89,23 @@ TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
             std::string::npos) << result.output;
 }
 
+// The first preset's overrides reach the run, and EVAL.json records what ran.
+TEST_F(EvalCli, OverridesOfTheFirstPresetAreRecorded) {
+  const CliResult result =
+      RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") +
+             " --presets hnn-default --no-baselines --engine cpu --max-features 400 --quiet"
+             " --A 1.5 --T 2 --support-gamma 25 --top-k 2");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  std::ifstream file(Path("eval.json"));
+  const nlohmann::json preset = nlohmann::json::parse(file)["presets"][0];
+  EXPECT_EQ(preset["name"], "hnn-default");
+  EXPECT_DOUBLE_EQ(preset["A"].get<double>(), 1.5);
+  EXPECT_DOUBLE_EQ(preset["T"].get<double>(), 2.0);
+  EXPECT_EQ(preset["top_k"], 2);
+  EXPECT_EQ(preset["data_term"]["kind"], "census");
+  EXPECT_DOUBLE_EQ(preset["data_term"]["support_gamma"].get<double>(), 25.0);
+}
+
 TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {
   fs::create_directories(Path("input_empty"));
   const CliResult result = RunCli("eval --dataset " + Path("input_empty") + " --out " + Path("eval.json"));
