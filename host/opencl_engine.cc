@@ -230,7 +230,8 @@ class DeviceNetwork {
   // The bytes one step reads under each layout's model: CSR reads every weight (4 B), the
   // neighbour lists per neuron and V[b] per connection (gathered, mostly from cache: counted
   // once per neuron); blocked reads every block (4 or 2 B a slot pair), one neighbour index per
-  // block and V of each neighbour row (ROW_PAD floats, from cache: counted once per row);
+  // block and V of each neighbour row (ROW_PAD floats, from cache: counted once per row; a
+  // block is BLOCK_COLS x ROW_PAD slots, kernels/hopfield.cl);
   // on the fly reads no weights, only V of each neighbour row and the per-slot data.
   double StepBytes() const {
     const NetworkLayout& L = net_.layout;
@@ -242,7 +243,7 @@ class DeviceNetwork {
       case WeightStorage::kBlockedFloat:
       case WeightStorage::kBlockedHalf: {
         const double slot_pair = storage_ == WeightStorage::kBlockedHalf ? 2.0 : 4.0;
-        return slot_pair * neighbours * row_pad_ * row_pad_ + 4.0 * neighbours +
+        return slot_pair * neighbours * row_pad_ * block_cols_ + 4.0 * neighbours +
                16.0 * rows * row_pad_;
       }
       default:
@@ -398,9 +399,13 @@ class DeviceNetwork {
   // GPU"), the dense 60 x 60 network's 60-slot blocks took 142-207 ms to solve against 4.2 ms
   // for CSR, whose one work-item per neuron keeps the card busy where 60 rows cannot.
   WeightStorage ResolveStorage(WeightStorage asked) {
-    row_pad_ = std::max(4, (MaxRowCount() + 3) / 4 * 4);
+    const int most = MaxRowCount();
+    row_pad_ = std::max(4, (most + 3) / 4 * 4);
+    // Rows of at most 3 neurons (hnn-default's K = 3) store 3 x 4 blocks (BLOCK_COLS).
+    block_cols_ = row_pad_ == 4 && most <= 3 ? 3 : row_pad_;
     const NetworkLayout& L = net_.layout;
-    const double blocked = static_cast<double>(L.feature_neighbours.size()) * row_pad_ * row_pad_;
+    const double blocked =
+        static_cast<double>(L.feature_neighbours.size()) * row_pad_ * block_cols_;
     if (asked != WeightStorage::kAuto) return asked;
     if (runtime_.is_gpu() && row_pad_ > 8) return WeightStorage::kCsr;
     return blocked <= 2.0 * std::max<double>(1.0, static_cast<double>(L.n_connections()))
@@ -418,7 +423,7 @@ class DeviceNetwork {
     const std::size_t n_blocks = L.feature_neighbours.size();
     const std::size_t block_bytes =
         weights_mode == 2 ? 0
-                          : n_blocks * static_cast<std::size_t>(row_pad_ * row_pad_) *
+                          : n_blocks * static_cast<std::size_t>(row_pad_ * block_cols_) *
                                 (weights_mode == 1 ? 2u : 4u);
     if (block_bytes > memory_budget_bytes) {
       throw std::runtime_error(
@@ -428,6 +433,7 @@ class DeviceNetwork {
     }
     const std::string options = KernelBuildOptions(energy, dynamics) +
                                 " -DROW_PAD=" + std::to_string(row_pad_) +
+                                " -DBLOCK_COLS=" + std::to_string(block_cols_) +
                                 " -DWEIGHTS=" + std::to_string(weights_mode);
     const cl::Program& program = runtime_.Program("hopfield", options);
     slot_count_ = std::max<std::size_t>(1, static_cast<std::size_t>(L.n_rows) *
@@ -516,7 +522,7 @@ class DeviceNetwork {
         }
       }
       block_row_ = MakeBuffer(context, ro, block_row);
-      const auto n_weights = static_cast<cl_long>(n_blocks) * row_pad_ * row_pad_;
+      const auto n_weights = static_cast<cl_long>(n_blocks) * row_pad_ * block_cols_;
       build_blocks_ = cl::Kernel(program, "build_weight_blocks_flat");
       SetArgs(build_blocks_, n_weights, block_row_, neighbours_, row_count_, slot_right_,
               slot_correlation_, feature_point_, params, blocks_);
@@ -945,6 +951,7 @@ class DeviceNetwork {
   };
   WeightStorage storage_ = WeightStorage::kCsr;
   int row_pad_ = 4;
+  int block_cols_ = 4;  ///< neighbour slots a weight block stores (BLOCK_COLS): row_pad_ or 3
   std::size_t slot_count_ = 1;
   int launches_ = 0, blocking_reads_ = 0;
   HostBlocked host_blocked_;

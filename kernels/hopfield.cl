@@ -258,10 +258,20 @@ __kernel void segment_sum(__global const int* segment_offsets,
 // Euler step (double-buffered V, so the update stays a Jacobi step as on the analog chip).
 //
 // Build options: ROW_PAD (multiple of 4), WEIGHTS (0 float blocks, 1 half blocks - vload_half,
-// core OpenCL 1.2 - with float accumulation, 2 on the fly: no stored weights at all).
+// core OpenCL 1.2 - with float accumulation, 2 on the fly: no stored weights at all),
+// BLOCK_COLS (the neighbour slots q a block stores: ROW_PAD, or 3 when ROW_PAD is 4 and no row
+// has a fourth neuron - hnn-default's K = 3 - so a block is 3 x 4 instead of 4 x 4: a quarter
+// fewer bytes to stream, the same sums, since a padded slot's V is 0).
 #ifndef ROW_PAD
 #define ROW_PAD 4
 #endif
+#ifndef BLOCK_COLS
+#define BLOCK_COLS ROW_PAD
+#endif
+#if BLOCK_COLS != ROW_PAD && !(BLOCK_COLS == 3 && ROW_PAD == 4)
+#error "BLOCK_COLS is ROW_PAD, or 3 with ROW_PAD 4"
+#endif
+#define BLOCK_SIZE (BLOCK_COLS * ROW_PAD)
 #ifndef WEIGHTS
 #define WEIGHTS 0
 #endif
@@ -287,7 +297,7 @@ float slot_weight(const int i, const int k, const int j, const int q,
 }
 
 // Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
-// W[(i,k),(j,q)] at t * ROW_PAD^2 + q * ROW_PAD + k (column q of the block contiguous, so the
+// W[(i,k),(j,q)] at t * BLOCK_SIZE + q * ROW_PAD + k (column q of the block contiguous, so the
 // step adds column q times V[j,q] with vector FMAs); padded slots get 0. Measured faster than
 // one work-item per weight (build_weight_blocks_flat, kept for a GPU): the per-weight index
 // arithmetic and lookups cost more than the loop, as neither is vectorised by PoCL here.
@@ -312,11 +322,11 @@ __kernel void build_weight_blocks(const int n_rows,
     const int j = feature_neighbours[t];
     const int nj = row_count[j];
     for (int k = 0; k < ROW_PAD; ++k) {
-      for (int q = 0; q < ROW_PAD; ++q) {
+      for (int q = 0; q < BLOCK_COLS; ++q) {
         const float w = (k < ni && q < nj)
                             ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
                             : 0.0f;
-        const size_t at = ((size_t)t * ROW_PAD + q) * ROW_PAD + k;
+        const size_t at = ((size_t)t * BLOCK_COLS + q) * ROW_PAD + k;
 #if WEIGHTS == 1
         vstore_half(w, at, blocks);
 #else
@@ -518,10 +528,12 @@ void finish_row(FINISH_ROW_PARAMS) {
 // arithmetic as the per-item step's inner loop (column q of the block times V[j,q]).
 #if WEIGHTS == 1
 #define BLOCK4(offset) vload_half4(0, blocks + (offset))
+#define BLOCK8(offset) vload_half8(0, blocks + (offset))
 #define BLOCK16(n) vload_half16((n), blocks)
 #define BLOCK_TYPE half
 #else
 #define BLOCK4(offset) vload4(0, blocks + (offset))
+#define BLOCK8(offset) vload8(0, blocks + (offset))
 #define BLOCK16(n) vload16((n), blocks)
 #define BLOCK_TYPE float
 #endif
@@ -584,7 +596,10 @@ void row_input(const int i, const int ni, const int first, const int end, const 
 #if WEIGHTS != 2
   float4 acc4[ROW_CHUNKS];
   for (int c = 0; c < ROW_CHUNKS; ++c) acc4[c] = (float4)(0.0f);
-#if ROW_PAD == 4 || ROW_PAD == 8
+#if ROW_PAD == 4 && BLOCK_COLS == 3
+  float8 acc8 = (float8)(0.0f);
+  float4 acc_q2 = (float4)(0.0f);
+#elif ROW_PAD == 4 || ROW_PAD == 8
   float16 acc16 = (float16)(0.0f);
 #endif
 #endif
@@ -600,7 +615,13 @@ void row_input(const int i, const int ni, const int first, const int end, const 
       }
     }
 #else
-#if ROW_PAD == 4
+#if ROW_PAD == 4 && BLOCK_COLS == 3
+    // A 3 x 4 block: columns q = 0, 1 as one 8-wide vector, column 2 as a 4-wide one.
+    const float4 vj = vload4(j, V_in);
+    const size_t block = (size_t)t * BLOCK_SIZE;
+    acc8 += BLOCK8(block) * vj.s00001111;
+    acc_q2 += BLOCK4(block + 8) * vj.s2222;
+#elif ROW_PAD == 4
     // The whole 4 x 4 block as one 16-wide vector (one AVX-512 register on a CPU device):
     // column q times V[j,q] with V[j] spread to (V0 x4, V1 x4, V2 x4, V3 x4); the four
     // columns are summed once after the loop. One conversion and one FMA a block.
@@ -617,8 +638,8 @@ void row_input(const int i, const int ni, const int first, const int end, const 
 #else
     // acc += block * V[j]: column q of the (column-major) block times V[j,q], four slots k
     // a vector FMA, no horizontal sums.
-    const size_t block = (size_t)t * (ROW_PAD * ROW_PAD);
-    for (int q = 0; q < ROW_PAD; ++q) {
+    const size_t block = (size_t)t * BLOCK_SIZE;
+    for (int q = 0; q < BLOCK_COLS; ++q) {
       const float vq = V_in[j * ROW_PAD + q];
       for (int c = 0; c < ROW_CHUNKS; ++c) {
         acc4[c] += BLOCK4(block + q * ROW_PAD + 4 * c) * vq;
@@ -628,7 +649,10 @@ void row_input(const int i, const int ni, const int first, const int end, const 
 #endif
   }
 #if WEIGHTS != 2
-#if ROW_PAD == 4
+#if ROW_PAD == 4 && BLOCK_COLS == 3
+  // (q0 + q1) + (q2 + q3) as the 4 x 4 sum adds them, with q3 = 0 there: the same bits.
+  acc4[0] = (acc8.lo + acc8.hi) + acc_q2;
+#elif ROW_PAD == 4
   acc4[0] = (acc16.s0123 + acc16.s4567) + (acc16.s89ab + acc16.scdef);
 #elif ROW_PAD == 8
   const float8 acc8 = acc16.lo + acc16.hi;
@@ -889,7 +913,7 @@ __kernel void row_decisions(const int n_rows,
 }
 
 // The weight blocks, one work-item per weight: (block t, q, k) from the global id; block t of
-// row i holds W[(i,k),(j,q)] at t * ROW_PAD^2 + q * ROW_PAD + k (padded slots get 0), and
+// row i holds W[(i,k),(j,q)] at t * BLOCK_SIZE + q * ROW_PAD + k (padded slots get 0), and
 // block_row[t] is that row i. Every work-item runs the same straight-line code, which a
 // per-row kernel (a data-dependent loop per row) could not; PoCL 3's loop vectoriser still
 // declines it ("instruction return type cannot be vectorized"), so it runs one weight per lane
@@ -910,8 +934,8 @@ __kernel void build_weight_blocks_flat(const long n_weights,
                                        ) {
   const long at = get_global_id(0);
   if (at >= n_weights) return;
-  const int t = (int)(at / (ROW_PAD * ROW_PAD));
-  const int qk = (int)(at - (long)t * (ROW_PAD * ROW_PAD));
+  const int t = (int)(at / BLOCK_SIZE);
+  const int qk = (int)(at - (long)t * BLOCK_SIZE);
   const int q = qk / ROW_PAD;
   const int k = qk - q * ROW_PAD;
   const int i = block_row[t];
@@ -1001,7 +1025,27 @@ __kernel void build_weight_blocks_vec4(const int n_rows,
       const int16 q16 = (int16)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
       const int16 real = (k16 < ni) & (q16 < nj) & !((q16 == k16) & (i == j ? (int16)(-1) : (int16)(0)));
       const float16 block = select((float16)(0.0f), w, real);
+#if BLOCK_COLS == 3
+      // 3 x 4 blocks: the first 12 lanes (q < 3); lane q = 3 is padding (nj <= 3), and so is
+      // lane k = 3 of the transpose (ni <= 3).
+      const float16 mirrored = block.s048c159d26ae37bf;
+      const size_t at = (size_t)t * BLOCK_SIZE, mirror_at = (size_t)mirror * BLOCK_SIZE;
 #if WEIGHTS == 1
+      vstore_half8(block.lo, 0, blocks + at);
+      vstore_half4(block.s89ab, 0, blocks + at + 8);
+      if (mirror >= 0) {
+        vstore_half8(mirrored.lo, 0, blocks + mirror_at);
+        vstore_half4(mirrored.s89ab, 0, blocks + mirror_at + 8);
+      }
+#else
+      vstore8(block.lo, 0, blocks + at);
+      vstore4(block.s89ab, 0, blocks + at + 8);
+      if (mirror >= 0) {
+        vstore8(mirrored.lo, 0, blocks + mirror_at);
+        vstore4(mirrored.s89ab, 0, blocks + mirror_at + 8);
+      }
+#endif
+#elif WEIGHTS == 1
       vstore_half16(block, t, blocks);
       if (mirror >= 0) vstore_half16(block.s048c159d26ae37bf, mirror, blocks);
 #else
