@@ -9,8 +9,8 @@ the sampled pixels and halved, and the non-occluded mask of `eval` (the set's ow
 the Middlebury 2014 layout, which `eval` reads: im0.png, im1.png, disp0GT.pfm (little-endian,
 +inf = unknown) and mask0nocc.png (255 non-occluded, 128 occluded, 0 unknown).
 
-    python3 scripts/half_size_pairs.py --dataset ../shared/datasets --out /tmp/half
-    build/hnnstereo eval --dataset /tmp/half --out half.json --markdown half.md --presets hnn-default
+    python3 scripts/half_size_pairs.py --dataset ../shared/datasets --out half-size
+    build/hnnstereo eval --dataset half-size --out half.json --markdown half.md --presets hnn-default
 Needs numpy, OpenCV's Python bindings and Pillow (as fit_confidence.py).
 """
 import argparse
