@@ -32,6 +32,7 @@ struct DataTermOptions {
   /// 0 = plain box sum.
   double support_gamma = 30.0;
   std::string Check() const;
+  bool operator==(const DataTermOptions&) const = default;
 };
 
 /// Per-pixel statistics of the window x window square centred on each pixel of a CV_8UC1

@@ -215,6 +215,8 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                    const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
                    const RefinementOptions& refinement, MatchReport* report) {
   if (auto error = refinement.Check(); !error.empty()) throw std::invalid_argument(error);
+  // Taken out of the report: its tables are only needed here, and a kept report stays small.
+  std::shared_ptr<const ZnccMatcher> similarity = std::move(report->similarity);
   if (!refinement.left_right_check && !refinement.subpixel && !refinement.epipolar_snap &&
       !refinement.epipolar_subpixel) {
     return;
@@ -241,7 +243,15 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
     refine_along_epipolar_lines();
     return;
   }
-  const ZnccMatcher zncc(left_grey, right_grey, matcher.zncc_window, matcher.data_term);
+  // The matcher's own similarity tables when they are the ones asked for (MatchStereo's, on the
+  // same pair), else built here.
+  if (!similarity || similarity->window() != matcher.zncc_window ||
+      !(similarity->data_term() == matcher.data_term) ||
+      similarity->right_width() != right_grey.cols) {
+    similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey, matcher.zncc_window,
+                                                     matcher.data_term);
+  }
+  const ZnccMatcher& zncc = *similarity;
   const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
   const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
   // Each match is checked and refined on its own (the matcher's scratch is per thread): the

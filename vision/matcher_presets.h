@@ -74,7 +74,9 @@ void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey
                              StereoMatch* match);
 
 /// The refinements alone, on a finished report (with a calibration the left-right check
-/// searches the epipolar line F^T x_r and the snap / sub-pixel work along F x_l).
+/// searches the epipolar line F^T x_r and the snap / sub-pixel work along F x_l). The report
+/// must come from MatchStereo on this same pair: its `similarity` tables are reused (when they
+/// are the data term asked for) and released.
 void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                    const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
                    const RefinementOptions& refinement, MatchReport* report);

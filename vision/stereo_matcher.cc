@@ -142,9 +142,10 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   }
 
   start = Clock::now();
-  const ZnccMatcher zncc(left_grey, right_grey, options.zncc_window, options.data_term);
-  CandidateReport candidates =
-      BuildCandidates(left.points, right.points, zncc, calibration, options.candidates);
+  report.similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey,
+                                                          options.zncc_window, options.data_term);
+  CandidateReport candidates = BuildCandidates(left.points, right.points, *report.similarity,
+                                               calibration, options.candidates);
   report.timing_ms.candidates = MillisecondsSince(start);
   const hnn::MatchingProblem& problem = candidates.problem;
   report.n_neurons = problem.n_neurons();

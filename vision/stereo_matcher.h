@@ -145,6 +145,9 @@ struct MatchReport {
   std::int64_t n_connections = 0;
   std::string engine_notice;  ///< e.g. why the opencl engine fell back to cpu
   TimingMs timing_ms;
+  /// The similarity of windows the candidates were scored with, on the matched pair: the
+  /// refinement (RefineMatches) reuses it instead of computing the images' tables again.
+  std::shared_ptr<const ZnccMatcher> similarity;
 };
 
 /// Runs the matcher on CV_8U grey images of equal size. `calibration` may be null only for
