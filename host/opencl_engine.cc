@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -612,8 +613,9 @@ class DeviceNetwork {
     if (resident_) {
       const auto n_checks = static_cast<std::size_t>(
           std::max(dynamics.max_steps, 0) / std::max(dynamics.energy_interval, 1) + 2);
-      energy_trace_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * n_checks);
-      outcome_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
+      // The outcome, the energy trace and the final V and u: solve_blocked_resident's `result`.
+      resident_result_ =
+          cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(float) * (4 + n_checks + 2 * slot_count_));
       resident_checks_ = n_checks;
       resident_groups_ = groups;
       // The ranges of rows the groups take (kResidentRangesPerGroup each).
@@ -623,9 +625,12 @@ class DeviceNetwork {
       range_rows_ = MakeBuffer(context, CL_MEM_READ_ONLY, range_rows);
       range_changes_ = cl::Buffer(context, CL_MEM_READ_WRITE,
                                   sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
-      range_claims_ = cl::Buffer(context, CL_MEM_READ_WRITE,
-                                 sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
-      loop_control_ = cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * 4);
+      // The claims and the loop's control as the kernel expects them at a launch (it leaves
+      // them so again): made with the buffers, not filled before every solve.
+      std::vector<cl_int> no_claims(static_cast<std::size_t>(resident_ranges_), -1);
+      range_claims_ = MakeBuffer(context, CL_MEM_READ_WRITE, no_claims);
+      std::vector<cl_int> control(5, 0);
+      loop_control_ = MakeBuffer(context, CL_MEM_READ_WRITE, control);
       // With column uniqueness, ranges of columns for the column sums of every step.
       std::vector<int> column_ranges{0, 0};
       if (L.column_uniqueness && L.n_columns > 0) {
@@ -635,8 +640,8 @@ class DeviceNetwork {
       resident_column_ranges_ =
           L.column_uniqueness ? static_cast<int>(column_ranges.size()) - 1 : 0;
       column_range_columns_ = MakeBuffer(context, CL_MEM_READ_ONLY, column_ranges);
-      column_claims_ =
-          cl::Buffer(context, CL_MEM_READ_WRITE, sizeof(cl_int) * column_ranges.size());
+      std::vector<cl_int> no_column_claims(column_ranges.size(), -1);
+      column_claims_ = MakeBuffer(context, CL_MEM_READ_WRITE, no_column_claims);
       const bool by_decisions = dynamics.stop_rule == DynamicsOptions::StopRule::kDecisions;
       resident_loop_ = cl::Kernel(program, "solve_blocked_resident");
       SetArgs(resident_loop_, static_cast<cl_int>(L.n_rows), static_cast<cl_int>(rows_per_item),
@@ -650,9 +655,10 @@ class DeviceNetwork {
               static_cast<cl_int>(dynamics.stable_checks), static_cast<cl_int>(by_decisions),
               static_cast<cl_float>(dynamics.energy_tolerance * std::max(1, L.n_neurons)),
               static_cast<cl_float>(dynamics.decision_tolerance * std::max(1, L.n_rows)),
-              energy_trace_, outcome_, range_rows_, static_cast<cl_int>(resident_ranges_),
-              range_claims_, loop_control_, column_offsets_, column_slots_, column_sums_,
-              column_range_columns_, static_cast<cl_int>(resident_column_ranges_), column_claims_);
+              resident_result_, static_cast<cl_int>(n_checks), range_rows_,
+              static_cast<cl_int>(resident_ranges_), range_claims_, loop_control_, column_offsets_,
+              column_slots_, column_sums_, column_range_columns_,
+              static_cast<cl_int>(resident_column_ranges_), column_claims_);
     }
   }
 
@@ -665,37 +671,33 @@ class DeviceNetwork {
     int stop_parity = 0;
     std::vector<float> energy_trace;  // the energy at every check
     int groups = 1;                   // the work-groups that ran it
-    BlockedState state;               // both parities' state buffers after the solve
+    BlockedState state;               // V and u as it stopped, in state.V/u[stop_parity]
   };
-  // The whole solve in one launch; then one blocking read (the trace behind the outcome).
+  // The whole solve in one launch, then one blocking read of its result (outcome, trace and the
+  // state it stopped on). The claims and control start as made; a second launch on the same
+  // buffers (none so far: a network solves once) finds them as the kernel left them, reset.
   ResidentOutcome SolveResident() {
-    std::vector<float> trace(resident_checks_, 0.0f);
-    cl_int outcome[4] = {0, 0, 0, 0};
-    queue_.enqueueFillBuffer(loop_control_, cl_int{0}, 0, sizeof(cl_int) * 4);
-    queue_.enqueueFillBuffer(range_claims_, cl_int{-1}, 0,
-                             sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
-    if (resident_column_ranges_ > 0) {
-      queue_.enqueueFillBuffer(column_claims_, cl_int{-1}, 0,
-                               sizeof(cl_int) * static_cast<std::size_t>(resident_column_ranges_));
-    }
     Launch(resident_loop_, cl::NDRange(static_cast<std::size_t>(resident_groups_)), cl::NDRange(1));
     ++launches_;
-    queue_.enqueueReadBuffer(energy_trace_, CL_FALSE, 0, sizeof(float) * trace.size(), trace.data(),
-                             nullptr, Record("read energy trace"));
-    // The state of both parities in the same wait (the stop parity is not known before it).
-    ResidentOutcome result;
-    const bool both[2] = {true, true};
-    EnqueueStateReads(both, &result.state);
-    queue_.enqueueReadBuffer(outcome_, CL_TRUE, 0, sizeof outcome, outcome, nullptr,
-                             Record("read outcome"));
+    std::vector<float> result_data(4 + resident_checks_ + 2 * slot_count_);
+    queue_.enqueueReadBuffer(resident_result_, CL_TRUE, 0, sizeof(float) * result_data.size(),
+                             result_data.data(), nullptr, Record("read result"));
     ++blocking_reads_;
+    cl_int outcome[4];
+    std::memcpy(outcome, result_data.data(), sizeof outcome);  // ints in float bits
+    ResidentOutcome result;
     result.groups = resident_groups_;
     result.steps = outcome[0];
     result.converged = outcome[1] != 0;
-    result.stop_parity = outcome[2];
-    trace.resize(
-        std::min<std::size_t>(trace.size(), static_cast<std::size_t>(std::max(outcome[3], 0))));
-    result.energy_trace = std::move(trace);
+    result.stop_parity = outcome[2] != 0 ? 1 : 0;
+    const auto trace_begin = result_data.begin() + 4;
+    const auto n_trace =
+        std::min<std::size_t>(resident_checks_, static_cast<std::size_t>(std::max(outcome[3], 0)));
+    result.energy_trace.assign(trace_begin, trace_begin + static_cast<std::ptrdiff_t>(n_trace));
+    const auto state_begin = trace_begin + static_cast<std::ptrdiff_t>(resident_checks_);
+    const auto n_slots = static_cast<std::ptrdiff_t>(slot_count_);
+    result.state.V[result.stop_parity].assign(state_begin, state_begin + n_slots);
+    result.state.u[result.stop_parity].assign(state_begin + n_slots, state_begin + 2 * n_slots);
     return result;
   }
 
@@ -963,7 +965,7 @@ class DeviceNetwork {
   bool resident_ = false;
   std::size_t resident_checks_ = 0;
   int resident_groups_ = 1, resident_ranges_ = 1, resident_column_ranges_ = 0;
-  cl::Buffer energy_trace_, outcome_, range_rows_, range_changes_, range_claims_, loop_control_,
+  cl::Buffer resident_result_, range_rows_, range_changes_, range_claims_, loop_control_,
       column_range_columns_, column_claims_;
   cl::Kernel resident_loop_;
   // kDecisions stop rule.

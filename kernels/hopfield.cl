@@ -795,10 +795,15 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // others take its ranges meanwhile (with a barrier instead, one core kept busy by another
 // process made a 2 ms solve take 90-200 ms). Groups that never run at once (PoCL with one
 // thread) do no harm: a group that starts after the stop finds control[0] = -1.
-// control = (step or phase, ranges finished in it, stable checks, checks), all 0 at the start;
-// claims and column_claims start at -1. energy_trace[c] = E at check c (E as the sum of row_energy in row order,
-// where segment_sum adds a tree: equal up to float rounding); outcome = (steps, converged, stop
-// parity, checks).
+// control = (step or phase, ranges finished in it, stable checks, checks, groups that left), all
+// 0 at the start; claims and column_claims start at -1, and the last group to leave sets them
+// so again. `result` is all the host reads back, in one read: the outcome (steps, converged,
+// stop parity, checks; ints in float bits), then energy_trace[c] = E at check c for c <
+// n_checks (E as the sum of row_energy in row order, where segment_sum adds a tree: equal up to
+// float rounding), then V and u of every slot as the network stopped (n_rows * ROW_PAD each,
+// copied by the group that stops it). Before, the host filled the claims and control and read
+// the trace, the outcome and both parities' V and u: six reads and two or three fills a solve,
+// about a tenth of the 1,000-feature solve (docs/engine.md).
 // solve_blocked_resident: a range of the current phase is done (its writes fenced before). Returns
 // 1 for the phase's last of n ranges, after resetting the count for the next phase; the caller
 // then opens the next phase (control[0]).
@@ -816,7 +821,7 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
                                      const int interval, const int stable_checks,
                                      const int by_decisions, const float energy_tolerance,
                                      const float decision_tolerance,
-                                     __global float* energy_trace, __global int* outcome,
+                                     __global float* result, const int n_checks,
                                      __global const int* range_rows, const int n_ranges,
                                      volatile __global int* claims,
                                      volatile __global int* control,
@@ -827,12 +832,23 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
                                      const int n_column_ranges,
                                      volatile __global int* column_claims) {
   if (get_local_id(0) != 0) return;
+  __global float* energy_trace = result + 4;
   const int own = (int)((long)n_ranges * get_group_id(0) / get_num_groups(0));
   // With column uniqueness a step has two phases: the column sums of V_in, then the rows.
   const int phases = n_column_ranges > 0 ? 2 : 1;
   for (;;) {
     const int tick = control[0];
-    if (tick < 0) return;
+    if (tick < 0) {
+      // The last group out leaves the loop's control and claims as the host made them, for a
+      // next launch on the same buffers (control[4] counts the groups that left).
+      if (atomic_inc(&control[4]) != (int)get_num_groups(0) - 1) return;
+      for (int r = 0; r < n_ranges; ++r) claims[r] = -1;
+      for (int c = 0; c < n_column_ranges; ++c) column_claims[c] = -1;
+      for (int k = 1; k < 5; ++k) control[k] = 0;
+      mem_fence(CLK_GLOBAL_MEM_FENCE);
+      control[0] = 0;
+      return;
+    }
     const int step = tick / phases;
     const int parity = step & 1;
     if (phases == 2 && tick % 2 == 0) {
@@ -887,10 +903,15 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
         control[2] = stable;
         control[3] = checks + 1;
         if (stable >= stable_checks || step >= max_steps) {
-          outcome[0] = step;
-          outcome[1] = stable >= stable_checks;
-          outcome[2] = parity;
-          outcome[3] = checks + 1;
+          result[0] = as_float(step);
+          result[1] = as_float(stable >= stable_checks ? 1 : 0);
+          result[2] = as_float(parity);
+          result[3] = as_float(checks + 1);
+          // The state the network stops on (V_in, u_in: the host loop's rule), after the trace.
+          __global float* final_state = energy_trace + n_checks;
+          const int n_slots = n_rows * ROW_PAD;
+          for (int k = 0; k < n_slots; ++k) final_state[k] = V_in[k];
+          for (int k = 0; k < n_slots; ++k) final_state[n_slots + k] = u_in[k];
           next = -1;
         }
       }
