@@ -625,11 +625,11 @@ class DeviceNetwork {
       range_rows_ = MakeBuffer(context, CL_MEM_READ_ONLY, range_rows);
       range_changes_ = cl::Buffer(context, CL_MEM_READ_WRITE,
                                   sizeof(cl_int) * static_cast<std::size_t>(resident_ranges_));
-      // The claims and the loop's control as the kernel expects them at a launch (it leaves
-      // them so again): made with the buffers, not filled before every solve.
+      // The claims and the loop's control as the kernel expects them at its launch, made with
+      // the buffers: no fills before the solve (a network's loop is launched once).
       std::vector<cl_int> no_claims(static_cast<std::size_t>(resident_ranges_), -1);
       range_claims_ = MakeBuffer(context, CL_MEM_READ_WRITE, no_claims);
-      std::vector<cl_int> control(5, 0);
+      std::vector<cl_int> control(4, 0);
       loop_control_ = MakeBuffer(context, CL_MEM_READ_WRITE, control);
       // With column uniqueness, ranges of columns for the column sums of every step.
       std::vector<int> column_ranges{0, 0};
@@ -674,9 +674,10 @@ class DeviceNetwork {
     BlockedState state;               // V and u as it stopped, in state.V/u[stop_parity]
   };
   // The whole solve in one launch, then one blocking read of its result (outcome, trace and the
-  // state it stopped on). The claims and control start as made; a second launch on the same
-  // buffers (none so far: a network solves once) finds them as the kernel left them, reset.
+  // state it stopped on). The claims and control are as the buffers were made: once a network.
   ResidentOutcome SolveResident() {
+    if (resident_launched_) throw std::logic_error("the device solve loop runs once a network");
+    resident_launched_ = true;
     Launch(resident_loop_, cl::NDRange(static_cast<std::size_t>(resident_groups_)), cl::NDRange(1));
     ++launches_;
     std::vector<float> result_data(4 + resident_checks_ + 2 * slot_count_);
@@ -964,6 +965,7 @@ class DeviceNetwork {
   // The solve loop on the device (SolveLoop::kDevice).
   bool resident_ = false;
   std::size_t resident_checks_ = 0;
+  bool resident_launched_ = false;
   int resident_groups_ = 1, resident_ranges_ = 1, resident_column_ranges_ = 0;
   cl::Buffer resident_result_, range_rows_, range_changes_, range_claims_, loop_control_,
       column_range_columns_, column_claims_;

@@ -795,9 +795,9 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // others take its ranges meanwhile (with a barrier instead, one core kept busy by another
 // process made a 2 ms solve take 90-200 ms). Groups that never run at once (PoCL with one
 // thread) do no harm: a group that starts after the stop finds control[0] = -1.
-// control = (step or phase, ranges finished in it, stable checks, checks, groups that left), all
-// 0 at the start; claims and column_claims start at -1, and the last group to leave sets them
-// so again. `result` is all the host reads back, in one read: the outcome (steps, converged,
+// control = (step or phase, ranges finished in it, stable checks, checks), all 0 at the start;
+// claims and column_claims start at -1 (as the host makes the buffers: one launch a network).
+// `result` is all the host reads back, in one read: the outcome (steps, converged,
 // stop parity, checks; ints in float bits), then energy_trace[c] = E at check c for c <
 // n_checks (E as the sum of row_energy in row order, where segment_sum adds a tree: equal up to
 // float rounding), then V and u of every slot as the network stopped (n_rows * ROW_PAD each,
@@ -838,17 +838,7 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
   const int phases = n_column_ranges > 0 ? 2 : 1;
   for (;;) {
     const int tick = control[0];
-    if (tick < 0) {
-      // The last group out leaves the loop's control and claims as the host made them, for a
-      // next launch on the same buffers (control[4] counts the groups that left).
-      if (atomic_inc(&control[4]) != (int)get_num_groups(0) - 1) return;
-      for (int r = 0; r < n_ranges; ++r) claims[r] = -1;
-      for (int c = 0; c < n_column_ranges; ++c) column_claims[c] = -1;
-      for (int k = 1; k < 5; ++k) control[k] = 0;
-      mem_fence(CLK_GLOBAL_MEM_FENCE);
-      control[0] = 0;
-      return;
-    }
+    if (tick < 0) return;
     const int step = tick / phases;
     const int parity = step & 1;
     if (phases == 2 && tick % 2 == 0) {
