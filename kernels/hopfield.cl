@@ -419,9 +419,9 @@ void finish_rows4(const int i, const float* acc, __global const int* row_count,
   const float16 zero = (float16)(0.0f);
   const float16 v_raw = vload16(0, V_in + base);
   const float16 va = select(zero, v_raw, live);
-  const float4 row_sum =
-      (float4)(((va.s0 + va.s1) + va.s2) + va.s3, ((va.s4 + va.s5) + va.s6) + va.s7,
-               ((va.s8 + va.s9) + va.sa) + va.sb, ((va.sc + va.sd) + va.se) + va.sf);
+  // Each row's ((V0 + V1) + V2) + V3 as four 4-wide adds of the rows' slots k = 0..3 (swizzles,
+  // not sixteen scalar extracts: the same sums); the energies below the same way.
+  const float4 row_sum = ((va.s048c + va.s159d) + va.s26ae) + va.s37bf;
   float16 sum = vload16(0, acc) - two_B * (row_sum.s0000111122223333 - va);
   if (two_C != 0.0f) {
     float cs[16];
@@ -432,10 +432,7 @@ void finish_rows4(const int i, const float* acc, __global const int* row_count,
   }
   const float16 ia = select(zero, vload16(0, slot_bias + base), live);
   const float16 e = va * (0.5f * sum + ia);
-  row_energy[i] = -(((e.s0 + e.s1) + e.s2) + e.s3);
-  row_energy[i + 1] = -(((e.s4 + e.s5) + e.s6) + e.s7);
-  row_energy[i + 2] = -(((e.s8 + e.s9) + e.sa) + e.sb);
-  row_energy[i + 3] = -(((e.sc + e.sd) + e.se) + e.sf);
+  vstore4(-(((e.s048c + e.s159d) + e.s26ae) + e.s37bf), 0, row_energy + i);
   const float16 u_raw = vload16(0, u_in + base);
   const float16 ua = select(zero, u_raw, live);
   const float16 next = ua + dt * (-ua * inv_tau + sum + ia);
@@ -723,8 +720,13 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
 #if ROW_PAD == 4 && !DISCRETE
   // Four rows at a time, finished as one float16, where all four belong to active networks.
   for (; i + 4 <= last; i += 4) {
-    if (active[network_of_row[i]] && active[network_of_row[i + 1]] &&
-        active[network_of_row[i + 2]] && active[network_of_row[i + 3]]) {
+    // A network's rows are consecutive: where the first and the last of the four share a
+    // network, all four do.
+    const int network = network_of_row[i];
+    if (network == network_of_row[i + 3] ? active[network]
+                                         : active[network] && active[network_of_row[i + 1]] &&
+                                               active[network_of_row[i + 2]] &&
+                                               active[network_of_row[i + 3]]) {
       float acc[16];
       for (int r = 0; r < 4; ++r) {
         row_input(i + r, row_count[i + r], feature_neighbour_offsets[i + r],
