@@ -103,7 +103,8 @@ nlohmann::json RunThroughputBench(const ThroughputBenchOptions& options, ocl::Ru
   json["bytes_per_second_model"] =
       "opencl: SolveReport::step_bytes per Euler step (the bytes the weight layout must read: "
       "csr 4 B a connection + 20 B a neuron; row blocks 4 or 2 B a slot pair + 4 B a block + "
-      "16 B a slot; on the fly 4 B a block + 28 B a slot), cpu: 8 B weight + 8 B activation per "
+      "20 B a slot + 12 B a row; on the fly 4 B a block + 32 B a slot + 12 B a row), cpu: 8 B "
+      "weight + 8 B activation per "
       "connection (double), thesis engine: 4 B weight per connection visited (its row of the "
       "dense float matrix; the activation vector it multiplies stays in cache)";
   if (options.measure_bandwidth) {

@@ -543,10 +543,10 @@ TEST_F(OpenClEngineTest, ThreeNeuronRowsStreamThreeColumnBlocks) {
     const double as_float = reports[WeightStorage::kBlockedFloat].step_bytes;
     const double as_half = reports[WeightStorage::kBlockedHalf].step_bytes;
     const double on_the_fly = reports[WeightStorage::kOnTheFly].step_bytes;
-    // 4-slot rows: float 4 B x blocks x 4 x columns + 4 B a block + 64 B a row; half 2 B a slot
-    // pair; on the fly 4 B a block + 112 B a row.
+    // 4-slot rows: float 4 B x blocks x 4 x columns + 4 B a block + 92 B a row (20 B a slot +
+    // 12); half 2 B a slot pair; on the fly 4 B a block + 140 B a row (32 B a slot + 12).
     const double rows = ((as_float - as_half) - (as_half - on_the_fly)) / 48.0;
-    const double blocks = (on_the_fly - 112.0 * rows) / 4.0;
+    const double blocks = (on_the_fly - 140.0 * rows) / 4.0;
     ASSERT_GT(blocks, 0.0) << as_float << " " << as_half << " " << on_the_fly;
     EXPECT_DOUBLE_EQ((as_float - as_half) / (8.0 * blocks), max_per_row == 2 ? 3.0 : 4.0)
         << "max_per_row " << max_per_row;
