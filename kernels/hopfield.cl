@@ -407,7 +407,8 @@ void finish_row(FINISH_ROW_PARAMS) {
 // device the tanh is a chain of dependent vector operations, and that chain, not the blocks,
 // was most of a step once the blocks sit in cache (perf of the 2,000-feature network: 3x the
 // time of the block loop). Padded slots keep their values (V 0), as finish_row leaves them.
-void finish_rows4(const int i, const float* acc, __global const int* row_count,
+__attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
+                                                __global const int* row_count,
                   __global const float* slot_bias, __global const int* slot_column,
                   __global const float* column_sums, const float two_B, const float two_C,
                   const float dt, const float inv_tau, const float alpha,
