@@ -523,16 +523,24 @@ void finish_row(FINISH_ROW_PARAMS) {
 #endif
 
 // Block t of a row times V of its neighbour row j, added to acc (slots k of the row): the same
-// arithmetic as the per-item step's inner loop (column q of the block times V[j,q]).
+// arithmetic as the per-item step's inner loop (column q of the block times V[j,q]). The
+// blocks are loaded (BLOCKn) and stored (STORE_BLOCKn, the vectorised build) in their storage
+// type: half blocks convert to and from float here.
 #if WEIGHTS == 1
 #define BLOCK4(offset) vload_half4(0, blocks + (offset))
 #define BLOCK8(offset) vload_half8(0, blocks + (offset))
 #define BLOCK16(n) vload_half16((n), blocks)
+#define STORE_BLOCK4(v, offset) vstore_half4((v), 0, blocks + (offset))
+#define STORE_BLOCK8(v, offset) vstore_half8((v), 0, blocks + (offset))
+#define STORE_BLOCK16(v, n) vstore_half16((v), (n), blocks)
 #define BLOCK_TYPE half
 #else
 #define BLOCK4(offset) vload4(0, blocks + (offset))
 #define BLOCK8(offset) vload8(0, blocks + (offset))
 #define BLOCK16(n) vload16((n), blocks)
+#define STORE_BLOCK4(v, offset) vstore4((v), 0, blocks + (offset))
+#define STORE_BLOCK8(v, offset) vstore8((v), 0, blocks + (offset))
+#define STORE_BLOCK16(v, n) vstore16((v), (n), blocks)
 #define BLOCK_TYPE float
 #endif
 
@@ -1092,27 +1100,15 @@ __kernel void build_weight_blocks_vec4(const int n_rows,
       // lane k = 3 of the transpose (ni <= 3).
       const float16 mirrored = block.s048c159d26ae37bf;
       const size_t at = (size_t)t * BLOCK_SIZE, mirror_at = (size_t)mirror * BLOCK_SIZE;
-#if WEIGHTS == 1
-      vstore_half8(block.lo, 0, blocks + at);
-      vstore_half4(block.s89ab, 0, blocks + at + 8);
+      STORE_BLOCK8(block.lo, at);
+      STORE_BLOCK4(block.s89ab, at + 8);
       if (mirror >= 0) {
-        vstore_half8(mirrored.lo, 0, blocks + mirror_at);
-        vstore_half4(mirrored.s89ab, 0, blocks + mirror_at + 8);
+        STORE_BLOCK8(mirrored.lo, mirror_at);
+        STORE_BLOCK4(mirrored.s89ab, mirror_at + 8);
       }
 #else
-      vstore8(block.lo, 0, blocks + at);
-      vstore4(block.s89ab, 0, blocks + at + 8);
-      if (mirror >= 0) {
-        vstore8(mirrored.lo, 0, blocks + mirror_at);
-        vstore4(mirrored.s89ab, 0, blocks + mirror_at + 8);
-      }
-#endif
-#elif WEIGHTS == 1
-      vstore_half16(block, t, blocks);
-      if (mirror >= 0) vstore_half16(block.s048c159d26ae37bf, mirror, blocks);
-#else
-      vstore16(block, t, blocks);
-      if (mirror >= 0) vstore16(block.s048c159d26ae37bf, mirror, blocks);
+      STORE_BLOCK16(block, t);
+      if (mirror >= 0) STORE_BLOCK16(block.s048c159d26ae37bf, mirror);
 #endif
     }
 #else
@@ -1157,25 +1153,13 @@ __kernel void build_weight_blocks_vec4(const int n_rows,
         const float4 m2 = (float4)(w[0].z, w[1].z, w[2].z, w[3].z);
         const float4 m3 = (float4)(w[0].w, w[1].w, w[2].w, w[3].w);
         const size_t at = ((size_t)t * ROW_PAD + 4 * c) * ROW_PAD + k0;
-#if WEIGHTS == 1
-        vstore_half4(m0, 0, blocks + at);
-        vstore_half4(m1, 0, blocks + at + ROW_PAD);
-        vstore_half4(m2, 0, blocks + at + 2 * ROW_PAD);
-        vstore_half4(m3, 0, blocks + at + 3 * ROW_PAD);
-#else
-        vstore4(m0, 0, blocks + at);
-        vstore4(m1, 0, blocks + at + ROW_PAD);
-        vstore4(m2, 0, blocks + at + 2 * ROW_PAD);
-        vstore4(m3, 0, blocks + at + 3 * ROW_PAD);
-#endif
+        STORE_BLOCK4(m0, at);
+        STORE_BLOCK4(m1, at + ROW_PAD);
+        STORE_BLOCK4(m2, at + 2 * ROW_PAD);
+        STORE_BLOCK4(m3, at + 3 * ROW_PAD);
         if (mirror >= 0) {
           for (int r = 0; r < 4; ++r) {
-            const size_t at_mirror = ((size_t)mirror * ROW_PAD + k0 + r) * ROW_PAD + 4 * c;
-#if WEIGHTS == 1
-            vstore_half4(w[r], 0, blocks + at_mirror);
-#else
-            vstore4(w[r], 0, blocks + at_mirror);
-#endif
+            STORE_BLOCK4(w[r], ((size_t)mirror * ROW_PAD + k0 + r) * ROW_PAD + 4 * c);
           }
         }
       }
