@@ -114,7 +114,7 @@ double ResidentMaxStepBytes(unsigned compute_units) {
 
 std::vector<int> ResidentRanges(const std::vector<int>& neighbour_offsets, int n_rows, int ranges) {
   // A row's cost in blocks: its neighbour blocks, and its finish (the uniqueness term, the
-  // activation's tanh, the energy term: about eight blocks' time on the 2-core VM).
+  // activation, the energy term: about eight blocks' time on the 2-core VM).
   constexpr double kRowFinish = 8.0;
   const auto cost_before = [&](int i) {
     return static_cast<double>(neighbour_offsets[static_cast<std::size_t>(i)] -

@@ -159,11 +159,51 @@ __kernel void line_sums(const int n_rows, const int n_columns,
   }
 }
 
+// e^x lane by lane, written out in fma, rint and integer ops: e^x = 2^n e^r with n = rint(x / ln 2)
+// and r = x - n ln 2 (ln 2 in two parts), e^r by Cephes' expf polynomial (S. L. Moshier, Cephes
+// Math Library: relative error about 1e-7 on |r| <= ln 2 / 2). x is clamped to [-87, 87], where
+// 2^n stays a normal float (e^x is then 1.6e-38 or 6.1e37). The same bits in every vector width
+// and as a scalar, which PoCL's exp is not (its scalar and float4 exp differ in the last bit for
+// 0.6 % of 4 M arguments here).
+#define DEFINE_EXP_LANES(T, IT)                                                      \
+  T exp_lanes_##T(const T x) {                                                     \
+    const T y = clamp(x, -87.0f, 87.0f);                                           \
+    const T n = rint(y * 1.44269504088896341f);                                    \
+    const T r = fma(n, (T)(2.12194440e-4f), fma(n, (T)(-0.693359375f), y));        \
+    T p = fma((T)(1.9875691500e-4f), r, (T)(1.3981999507e-3f));                   \
+    p = fma(p, r, (T)(8.3334519073e-3f));                                          \
+    p = fma(p, r, (T)(4.1665795894e-2f));                                          \
+    p = fma(p, r, (T)(1.6666665459e-1f));                                          \
+    p = fma(p, r, (T)(5.0000001201e-1f));                                          \
+    return (fma(p, r * r, r) + 1.0f) * as_##T((convert_##IT(n) + 127) << 23);      \
+  }
+DEFINE_EXP_LANES(float, int)
+DEFINE_EXP_LANES(float4, int4)
+DEFINE_EXP_LANES(float8, int8)
+DEFINE_EXP_LANES(float16, int16)
+
+// The continuous activation V = (1 + tanh(u / alpha)) / 2 (the thesis's), computed as the same
+// function's other form, the logistic 1 / (1 + e^(-2u / alpha)), with exp_lanes: the same bits
+// whether a row is finished alone (float4), in fours (float16) or as a wider row (float8). It
+// replaced PoCL's tanh, which took about half the instructions of the four-row finish
+// (callgrind of Teddy's 1,000-feature solve, docs/engine.md). V below 2^-25 is 0, as (1 + tanh)
+// / 2 rounds it in float (tanh(x) is -1 for x < -9.01): a neuron that far OFF stays exactly 0,
+// which the on-the-fly step skips.
+#define DEFINE_ACTIVATION(T)                                        \
+  T activation_##T(const T u, const float alpha) {                  \
+    const T v = 1.0f / (1.0f + exp_lanes_##T(u * (-2.0f / alpha))); \
+    return select(v, (T)(0.0f), v < 0x1.0p-25f);                    \
+  }
+DEFINE_ACTIVATION(float)
+DEFINE_ACTIVATION(float4)
+DEFINE_ACTIVATION(float8)
+DEFINE_ACTIVATION(float16)
+
 float activate(float u, float alpha, float previous) {
 #if DISCRETE
   return u > 0.0f ? 1.0f : (u < 0.0f ? 0.0f : previous);
 #else
-  return 0.5f * (1.0f + tanh(u / alpha));
+  return activation_float(u, alpha);
 #endif
 }
 
@@ -367,9 +407,9 @@ __kernel void column_sums_blocked(const int n_columns,
 // row and column uniqueness terms (eq. 6.11), the bias, the row's energy term at V_in (eq. 6.10)
 // and the step of u and V into the other state buffer.
 #if ROW_PAD == 4 && !DISCRETE
-// 4-slot rows (hnn-default's top-4 network): the four slots as one float4, so that tanh - the
-// costliest part of a step on a CPU device once the blocks sit in cache (perf: the scalar tanh
-// was most of the step on sparse-2000) - is one vector call. Padded slots (k >= ni) are masked
+// 4-slot rows (hnn-default's top-4 network): the four slots as one float4, so that the activation
+// - the costliest part of a step on a CPU device once the blocks sit in cache (perf: the scalar
+// tanh was most of the step on sparse-2000) - is one vector call. Padded slots (k >= ni) are masked
 // to 0 and never written; the sums run in the scalar loop's order.
 void finish_row(FINISH_ROW_PARAMS) {
   const int base = i * 4;
@@ -391,7 +431,7 @@ void finish_row(FINISH_ROW_PARAMS) {
   row_energy[i] = -(((e.x + e.y) + e.z) + e.w);
   const float4 ua = select(zero, vload4(i, u_in), live);
   const float4 next = ua + dt * (-ua * inv_tau + sum + ia);
-  const float4 v = 0.5f * (1.0f + tanh(next / alpha));
+  const float4 v = activation_float4(next, alpha);
   if (ni == 4) {
     vstore4(next, i, u_out);
     vstore4(v, i, V_out);
@@ -403,8 +443,8 @@ void finish_row(FINISH_ROW_PARAMS) {
 }
 
 // Rows i .. i + 3 finished together: the float4 finish_row's arithmetic lane by lane on one
-// float16, so that the activation is one 16-wide tanh instead of four 4-wide ones. On a CPU
-// device the tanh is a chain of dependent vector operations, and that chain, not the blocks,
+// float16, so that the activation is one 16-wide call instead of four 4-wide ones. On a CPU
+// device it is a chain of dependent vector operations, and that chain, not the blocks,
 // was most of a step once the blocks sit in cache (perf of the 2,000-feature network: 3x the
 // time of the block loop). Padded slots keep their values (V 0), as finish_row leaves them.
 __attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
@@ -437,17 +477,18 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
   const float16 u_raw = vload16(0, u_in + base);
   const float16 ua = select(zero, u_raw, live);
   const float16 next = ua + dt * (-ua * inv_tau + sum + ia);
-  const float16 v = 0.5f * (1.0f + tanh(next / alpha));
+  const float16 v = activation_float16(next, alpha);
   vstore16(select(u_raw, next, live), 0, u_out + base);
   vstore16(select(v_raw, v, live), 0, V_out + base);
 }
 #elif !DISCRETE
 // Wider rows (8, 12, ... slots: the pick cell's feature network) in chunks of FINISH_W slots
-// (8 where the row pad allows, else 4), each as one vector: one vector tanh per chunk instead
+// (8 where the row pad allows, else 4), each as one vector: one vector activation per chunk instead
 // of a scalar one per slot (perf of a pick network, 8-slot rows: the scalar finish was half of
 // the step). The energy terms are added in slot order, as the scalar loop adds them.
 #if ROW_PAD % 8 == 0
 #define FINISH_W 8
+#define activationW activation_float8
 #define floatW float8
 #define intW int8
 #define vloadW vload8
@@ -455,6 +496,7 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
 #define FINISH_LANES (int8)(0, 1, 2, 3, 4, 5, 6, 7)
 #else
 #define FINISH_W 4
+#define activationW activation_float4
 #define floatW float4
 #define intW int4
 #define vloadW vload4
@@ -485,7 +527,7 @@ void finish_row(FINISH_ROW_PARAMS) {
     for (int l = 0; l < FINISH_W; ++l) energy -= e[l];
     const floatW ua = select(zero, vloadW(0, u_in + k0), live);
     const floatW next = ua + dt * (-ua * inv_tau + sum + ia);
-    const floatW v = 0.5f * (1.0f + tanh(next / alpha));
+    const floatW v = activationW(next, alpha);
     if (live_slots == FINISH_W) {
       vstoreW(next, 0, u_out + k0);
       vstoreW(v, 0, V_out + k0);
