@@ -353,6 +353,43 @@ TEST_P(OpenClStorageTest, RowPerGroupStepAgreesWithTheRowPerItemStep) {
   }
 }
 
+// The kernels' activation (exp_lanes in kernels/hopfield.cl: the logistic 1 / (1 + e^(-2u/alpha))
+// written out in fma and integer operations) against the thesis's V = (1 + tanh(u / alpha)) / 2 in
+// double, on the state a solve stopped on (V and u of the same step), for every storage (csr:
+// the scalar Euler kernel), 4-slot, 3-slot and wider rows (float16, float4 and float8
+// finishes) and two gains: within 2.5e-7 of V plus 3e-8,
+// and exactly 0 where the reference is below 2^-26 (as (1 + tanh) / 2 rounds in float).
+TEST_P(OpenClStorageTest, ActivationIsTheThesisTanh) {
+  EnergyOptions energy;
+  energy.support_radius_px = 15.0;
+  int checked = 0, zeros = 0;
+  for (const double alpha : {0.5, 0.13}) {
+    for (int max_per_row : {4, 2, 8}) {
+      DynamicsOptions dynamics;
+      dynamics.alpha = alpha;
+      dynamics.max_steps = 9;  // a state in motion, not only the saturated end
+      const MatchingProblem problem = testing::SyntheticProblem(41, 150, 50, false, max_per_row);
+      const SolveReport r =
+          OpenClEngine(*runtime_, {GetParam(), 0}).Solve(problem, energy, dynamics);
+      ASSERT_EQ(r.activation.size(), r.potential.size());
+      for (std::size_t a = 0; a < r.activation.size(); ++a) {
+        const double reference = 0.5 * (1.0 + std::tanh(r.potential[a] / alpha));
+        const std::string what = "alpha " + std::to_string(alpha) + " per-row " +
+                                 std::to_string(max_per_row) + " neuron " + std::to_string(a);
+        if (reference < std::ldexp(1.0, -26)) {
+          EXPECT_EQ(r.activation[a], 0.0) << what;
+          ++zeros;
+        } else {
+          EXPECT_NEAR(r.activation[a], reference, 2.5e-7 * reference + 3e-8) << what;
+        }
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(zeros, 0);
+  EXPECT_GT(checked - zeros, 500);  // compared with the reference, not only 0
+}
+
 TEST_P(OpenClStorageTest, DenseNetworkAgreesWithTheCpuEngine) {
   const MatchingProblem problem = testing::SyntheticProblem(56, 30, 10, /*dense=*/true);
   EnergyOptions energy;

@@ -3,8 +3,11 @@
 // advised as huge pages; it must hold what a kernel writes and what the host writes, across a
 // growth, at sizes on both sides of that threshold.
 #include <gtest/gtest.h>
+#include <sched.h>
+#include <unistd.h>
 
 #include <cstddef>
+#include <cstdlib>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -29,6 +32,32 @@ std::vector<int> FillOnDevice(Runtime& runtime, const cl::Buffer& buffer, std::s
   std::vector<int> out(count);
   runtime.queue().enqueueReadBuffer(buffer, CL_TRUE, 0, sizeof(int) * count, out.data());
   return out;
+}
+
+// The runtime pins PoCL's worker threads (POCL_AFFINITY=1, host/opencl_runtime.cc) before the
+// first OpenCL call where the process may run on every online CPU, never over a value already
+// set, and not where it may not: run under `taskset -c 1` the variable stays unset.
+TEST(Runtime, PinsPoclWorkersOnlyWhereEveryCpuIsAllowed) {
+  const char* before = std::getenv("POCL_AFFINITY");
+  const std::string given = before ? before : "";
+  const long online = sysconf(_SC_NPROCESSORS_ONLN);
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  ASSERT_EQ(sched_getaffinity(0, sizeof allowed, &allowed), 0);
+  bool every_cpu = std::getenv("POCL_CPU_MAX_CU_COUNT") == nullptr;
+  for (long cpu = 0; cpu < online; ++cpu) every_cpu = every_cpu && CPU_ISSET(cpu, &allowed);
+  std::string why_not;
+  auto runtime = Runtime::Create(DeviceSelection::FromEnvironment(), &why_not);
+  const char* after = std::getenv("POCL_AFFINITY");
+  if (before) {
+    ASSERT_NE(after, nullptr);
+    EXPECT_EQ(std::string(after), given);
+  } else if (every_cpu) {
+    ASSERT_NE(after, nullptr);
+    EXPECT_EQ(std::string(after), "1");
+  } else {
+    EXPECT_EQ(after, nullptr);
+  }
 }
 
 TEST(ScratchBuffer, HoldsWhatIsWrittenAcrossGrowthAndSizes) {
