@@ -17,10 +17,10 @@ namespace {
 
 // PoCL's CPU device runs a kernel's work-groups on its own worker threads, one a core, which
 // sleep between commands. Left to the OS, both of its workers were often queued on one core of
-// the 2-core VM while the other core idled, for a whole process: the device solve loop's second
-// work-group then started only after the first had done every step alone (counted per solve in
-// `bench --sizes 1000`, 15 solves a process: in three processes of four 0, 7 or 16 solves ran on
-// one group, the 1,000-feature solve then at one core's speed). POCL_AFFINITY=1 pins worker i to
+// the 2-core VM while the other core idled (in some processes at every solve): the device loop's
+// second work-group then started only after the first had done every step alone (counted per solve
+// in `bench --sizes 1000`, 16 solves a process: 7, 0, 16 and 0 of them in four processes), the
+// 1,000-feature solve then at one core's speed. POCL_AFFINITY=1 pins worker i to
 // CPU i: no solve ran alone in four processes, and the case's roofline fraction was 61-65 %
 // against 37-64 %. Set before the first OpenCL call (PoCL reads it when it starts its workers),
 // never over a value already set (POCL_AFFINITY=0 opts out), and only where the process may run
