@@ -689,16 +689,22 @@ class DeviceNetwork {
     // 1,000-feature network: 25-45 us from the loop's end to the read's start, in a 0.4 ms solve).
     cl::UserEvent gate(runtime_.context());
     const std::vector<cl::Event> after_gate{gate};
-    queue_.enqueueNDRangeKernel(resident_loop_, cl::NullRange,
-                                cl::NDRange(static_cast<std::size_t>(resident_groups_)),
-                                cl::NDRange(1), &after_gate, Record("solve_blocked_resident"));
-    ++launches_;
     std::vector<float> result_data(4 + resident_checks_ + 2 * slot_count_);
     cl::Event read;
-    cl::Event* read_event = profile_ ? Record("read result") : &read;
-    queue_.enqueueReadBuffer(resident_result_, CL_FALSE, 0, sizeof(float) * result_data.size(),
-                             result_data.data(), nullptr, read_event);
-    queue_.flush();
+    cl::Event* read_event = &read;
+    try {
+      queue_.enqueueNDRangeKernel(resident_loop_, cl::NullRange,
+                                  cl::NDRange(static_cast<std::size_t>(resident_groups_)),
+                                  cl::NDRange(1), &after_gate, Record("solve_blocked_resident"));
+      ++launches_;
+      if (profile_) read_event = Record("read result");
+      queue_.enqueueReadBuffer(resident_result_, CL_FALSE, 0, sizeof(float) * result_data.size(),
+                               result_data.data(), nullptr, read_event);
+      queue_.flush();
+    } catch (...) {
+      gate.setStatus(CL_COMPLETE);  // a loop left waiting would hold up the queue for good
+      throw;
+    }
     gate.setStatus(CL_COMPLETE);
     read_event->wait();
     ++blocking_reads_;

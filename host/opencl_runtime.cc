@@ -25,7 +25,8 @@ namespace {
 // against 37-64 %. Set before the first OpenCL call (PoCL reads it when it starts its workers),
 // never over a value already set (POCL_AFFINITY=0 opts out), and only where the process may run
 // on every online CPU and PoCL counts its cores itself, so that no pin asks for a CPU the process
-// may not use.
+// may not use. (setenv is not safe against a getenv in another thread: the commands open their
+// runtime before they start threads of their own - serve and pick before the link and the page.)
 void PinPoclWorkersWhereSafe() {
   static const bool pinned = [] {
     if (std::getenv("POCL_AFFINITY") || std::getenv("POCL_CPU_MAX_CU_COUNT")) return false;

@@ -184,11 +184,10 @@ DEFINE_EXP_LANES(float16, int16)
 
 // The continuous activation V = (1 + tanh(u / alpha)) / 2 (the thesis's), computed as the same
 // function's other form, the logistic 1 / (1 + e^(-2u / alpha)), with exp_lanes: the same bits
-// whether a row is finished alone (float4), in fours (float16) or as a wider row (float8). It
-// replaced PoCL's tanh, which took about half the instructions of the four-row finish
-// (callgrind of Teddy's 1,000-feature solve, docs/engine.md). V below 2^-25 is 0, as (1 + tanh)
-// / 2 rounds it in float (tanh(x) is -1 for x < -9.01): a neuron that far OFF stays exactly 0,
-// which the on-the-fly step skips.
+// whether a row is finished alone (float4), in fours (float16) or as a wider row (float8). In
+// place of PoCL's tanh: 5 % fewer instructions in Teddy's 1,000-feature solve (callgrind,
+// docs/engine.md). V below 2^-25 is 0, as (1 + tanh) / 2 rounds it in float (tanh(x) is -1 for
+// x < -9.01): a neuron that far OFF stays exactly 0, which the on-the-fly step skips.
 #define DEFINE_ACTIVATION(T)                                        \
   T activation_##T(const T u, const float alpha) {                  \
     const T v = 1.0f / (1.0f + exp_lanes_##T(u * (-2.0f / alpha))); \
@@ -483,9 +482,9 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
 }
 #elif !DISCRETE
 // Wider rows (8, 12, ... slots: the pick cell's feature network) in chunks of FINISH_W slots
-// (8 where the row pad allows, else 4), each as one vector: one vector activation per chunk instead
-// of a scalar one per slot (perf of a pick network, 8-slot rows: the scalar finish was half of
-// the step). The energy terms are added in slot order, as the scalar loop adds them.
+// (8 where the row pad allows, else 4), each as one vector: one vector activation per chunk
+// instead of a scalar one per slot (perf of a pick network, 8-slot rows: the scalar finish was
+// half of the step). The energy terms are added in slot order, as the scalar loop adds them.
 #if ROW_PAD % 8 == 0
 #define FINISH_W 8
 #define activationW activation_float8
