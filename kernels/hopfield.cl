@@ -446,7 +446,7 @@ void finish_row(FINISH_ROW_PARAMS) {
 // device it is a chain of dependent vector operations, and that chain, not the blocks,
 // was most of a step once the blocks sit in cache (perf of the 2,000-feature network: 3x the
 // time of the block loop). Padded slots keep their values (V 0), as finish_row leaves them.
-__attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
+__attribute__((always_inline)) void finish_rows4(const int i, const float16 acc,
                                                 __global const int* row_count,
                   __global const float* slot_bias, __global const int* slot_column,
                   __global const float* column_sums, const float two_B, const float two_C,
@@ -462,7 +462,7 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float* acc,
   // Each row's ((V0 + V1) + V2) + V3 as four 4-wide adds of the rows' slots k = 0..3 (swizzles,
   // not sixteen scalar extracts: the same sums); the energies below the same way.
   const float4 row_sum = ((va.s048c + va.s159d) + va.s26ae) + va.s37bf;
-  float16 sum = vload16(0, acc) - two_B * (row_sum.s0000111122223333 - va);
+  float16 sum = acc - two_B * (row_sum.s0000111122223333 - va);
   if (two_C != 0.0f) {
     float cs[16];
     for (int l = 0; l < 16; ++l) {
@@ -777,12 +777,23 @@ void step_rows(const int first, const int last, STEP_BLOCKED_PARAMS) {
                                          : active[network] && active[network_of_row[i + 1]] &&
                                                active[network_of_row[i + 2]] &&
                                                active[network_of_row[i + 3]]) {
-      float acc[16];
-      for (int r = 0; r < 4; ++r) {
-        row_input(i + r, row_count[i + r], feature_neighbour_offsets[i + r],
-                  feature_neighbour_offsets[i + r + 1], 1, row_count, feature_neighbours, blocks,
-                  slot_right, slot_correlation, feature_point, p, V_in, acc + 4 * r);
-      }
+      // Each row's input in its own array, read back as the 4-wide vector it was stored as: one
+      // 16-wide read of four 4-wide stores cannot be forwarded from the stores and waits for them.
+      float acc0[4], acc1[4], acc2[4], acc3[4];
+      row_input(i, row_count[i], feature_neighbour_offsets[i], feature_neighbour_offsets[i + 1], 1,
+                row_count, feature_neighbours, blocks, slot_right, slot_correlation, feature_point,
+                p, V_in, acc0);
+      row_input(i + 1, row_count[i + 1], feature_neighbour_offsets[i + 1],
+                feature_neighbour_offsets[i + 2], 1, row_count, feature_neighbours, blocks,
+                slot_right, slot_correlation, feature_point, p, V_in, acc1);
+      row_input(i + 2, row_count[i + 2], feature_neighbour_offsets[i + 2],
+                feature_neighbour_offsets[i + 3], 1, row_count, feature_neighbours, blocks,
+                slot_right, slot_correlation, feature_point, p, V_in, acc2);
+      row_input(i + 3, row_count[i + 3], feature_neighbour_offsets[i + 3],
+                feature_neighbour_offsets[i + 4], 1, row_count, feature_neighbours, blocks,
+                slot_right, slot_correlation, feature_point, p, V_in, acc3);
+      const float16 acc = (float16)(vload4(0, acc0), vload4(0, acc1), vload4(0, acc2),
+                                    vload4(0, acc3));
       finish_rows4(i, acc, row_count, slot_bias, slot_column, column_sums, two_B, two_C, dt,
                    inv_tau, alpha, V_in, u_in, V_out, u_out, row_energy);
       if (check) decide_rows4(i, row_count, u_in, decisions, changes, network_of_row);
