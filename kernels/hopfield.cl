@@ -402,6 +402,15 @@ __kernel void column_sums_blocked(const int n_columns,
       const float two_C, const float dt, const float inv_tau, const float alpha,             \
       __global const float* V_in, __global const float* u_in, __global float* V_out,         \
       __global float* u_out, __global float* row_energy
+#if ROW_PAD == 4
+// The live slots of the four 4-slot rows i .. i + 3 as one int16 mask (lane 4r + k: slot k of
+// row i + r exists), for the four-row finish and decisions.
+int16 live_slots_of_rows4(__global const int* row_count, const int i) {
+  return (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) <
+         vload4(0, row_count + i).s0000111122223333;
+}
+#endif
+
 // The rest of row i's Euler step once `acc` holds its compatibility input sum_b W_ab V_b: the
 // row and column uniqueness terms (eq. 6.11), the bias, the row's energy term at V_in (eq. 6.10)
 // and the step of u and V into the other state buffer.
@@ -454,8 +463,7 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float16 acc,
                   __global const float* V_in, __global const float* u_in, __global float* V_out,
                   __global float* u_out, __global float* row_energy) {
   const int base = i * 4;
-  const int4 n4 = vload4(0, row_count + i);
-  const int16 live = (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) < n4.s0000111122223333;
+  const int16 live = live_slots_of_rows4(row_count, i);
   const float16 zero = (float16)(0.0f);
   const float16 v_raw = vload16(0, V_in + base);
   const float16 va = select(zero, v_raw, live);
@@ -640,9 +648,7 @@ void decide_row(const int i, const int ni, __global const float* u, const int fi
 void decide_rows4(const int i, __global const int* row_count, __global const float* u,
                   __global int* decisions, __global int* changes,
                   __global const int* network_of_row) {
-  const int4 n4 = vload4(0, row_count + i);
-  const int16 live =
-      (int16)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3) < n4.s0000111122223333;
+  const int16 live = live_slots_of_rows4(row_count, i);
   const float16 ua = select((float16)(-INFINITY), vload16(0, u + i * 4), live);
   // Slots (0, 1) and (2, 3) of every row.
   const float8 even = ua.s02468ace, odd = ua.s13579bdf;
