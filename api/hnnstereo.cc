@@ -141,7 +141,10 @@ MatchResult Matcher::Match(const cv::Mat& left, const cv::Mat& right, double max
   api::MatcherSettings settings = impl_->settings;
   settings.matcher.candidates.rectified = true;
   settings.matcher.candidates.max_disparity = max_disparity;
-  if (auto error = settings.matcher.Check(); !error.empty()) throw std::invalid_argument(error);
+  api::CheckMatchSetup(left_grey, right_grey, nullptr, settings.matcher, "left and right");
+  if (auto error = settings.matcher.Check(); !error.empty()) {
+    throw std::invalid_argument(api::InOptionNames(error, api::MatcherOptionNameTable()));
+  }
   const vision::MatchReport report = api::RunMatchPipeline(
       left_grey, right_grey, nullptr, settings.matcher, settings.refinement, impl_->runtime.get());
   return ToResult(report, settings);
@@ -152,8 +155,11 @@ MatchResult Matcher::Match(const cv::Mat& left, const cv::Mat& right, const Cali
   const auto [left_grey, right_grey] = GreyPair(left, right);
   api::MatcherSettings settings = impl_->settings;
   if (cal.rectified) settings.matcher.candidates.rectified = true;
+  api::CheckMatchSetup(left_grey, right_grey, &cal, settings.matcher, "left and right");
   api::UseFeatureNetworkUnlessRectified(settings.matcher.candidates.rectified, &settings);
-  if (auto error = settings.matcher.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (auto error = settings.matcher.Check(); !error.empty()) {
+    throw std::invalid_argument(api::InOptionNames(error, api::MatcherOptionNameTable()));
+  }
   const vision::MatchReport report = api::RunMatchPipeline(
       left_grey, right_grey, &cal, settings.matcher, settings.refinement, impl_->runtime.get());
   return ToResult(report, settings);
@@ -165,10 +171,8 @@ SensingResult SensePositions(const cv::Mat& left, const cv::Mat& right, const Ca
                              const MatcherOverrides& overrides) {
   const calib::StereoCalibration& cal = CalibrationAccess::Get(calibration);
   const auto [left_grey, right_grey] = GreyPair(left, right);
-  if (cal.image_width > 0 && (cal.image_width != left_grey.cols || cal.image_height != left_grey.rows)) {
-    throw std::invalid_argument("the calibration is for " + std::to_string(cal.image_width) + "x" +
-                                std::to_string(cal.image_height) + " images, the pair is " +
-                                std::to_string(left_grey.cols) + "x" + std::to_string(left_grey.rows));
+  if (auto problem = cal.ImageSizeProblem(left_grey.cols, left_grey.rows); !problem.empty()) {
+    throw std::invalid_argument("the calibration " + problem);
   }
   // `hnnstereo pick`'s defaults (app/cell_sensing.cc): the pick-cell matcher, the preset,
   // then the feature network (pick cells are calibrated, unrectified).

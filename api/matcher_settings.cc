@@ -1,5 +1,6 @@
 #include "api/matcher_settings.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -138,25 +139,11 @@ std::vector<std::string> OverrideNames() {
   return names;
 }
 
-MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
-                                       const vision::MatcherOptions& base) {
-  MatcherSettings settings;
-  settings.preset = preset;
-  settings.matcher = base;
+// The preset's settings, except those given in `settings.given` (the objective, network,
+// top-k, data term, support radius) and its refinements (unless no-lr-check).
+void ApplyPreset(const std::string& preset, std::map<std::string, std::string>& strings,
+                 MatcherSettings& settings) {
   vision::MatcherOptions& o = settings.matcher;
-  std::map<std::string, std::string> strings = StringOptionDefaults();
-  for (const auto& [raw_name, value] : overrides) {
-    const std::string name = CanonicalName(raw_name);
-    settings.given[name] = value;
-    if (auto direct = DirectOptions().find(name); direct != DirectOptions().end()) {
-      direct->second(name, value, o);
-    } else if (strings.count(name) > 0) {
-      strings[name] = value;
-    } else {
-      throw std::invalid_argument("unknown option " + Quoted(raw_name) +
-                                  " (the match command's flags without dashes, e.g. max-features)");
-    }
-  }
   const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
 
   // The preset, unless overridden, then the string-valued settings.
@@ -192,6 +179,14 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   }
   if (!given("support-radius")) o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
 
+}
+
+// The string-valued settings (features, engine, objective, init, activation, stop rule, weight
+// storage, decoding, network) parsed into `o`; an unknown name is refused naming the choices.
+void ParseNamedSettings(std::map<std::string, std::string>& strings, MatcherSettings& settings,
+                        const vision::MatcherPreset& chosen) {
+  vision::MatcherOptions& o = settings.matcher;
+  const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
   if (auto d = vision::ParseFeatureDetector(strings["features"])) {
     o.features.detector = *d;
   } else {
@@ -222,7 +217,7 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   // The stop rule and the check interval are the preset's unless given (hnn-default: decisions,
   // every 2 steps, twice in a row; docs/engine.md).
   if (!given("stop")) {
-    o.dynamics.stop_rule = chosen->matcher.dynamics.stop_rule;
+    o.dynamics.stop_rule = chosen.matcher.dynamics.stop_rule;
   } else if (strings["stop"] == "energy") {
     o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
   } else if (strings["stop"] == "decisions") {
@@ -231,8 +226,8 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
     throw std::invalid_argument("unknown stop '" + strings["stop"] + "' (energy or decisions)");
   }
   if (!given("check-interval")) {
-    o.dynamics.energy_interval = chosen->matcher.dynamics.energy_interval;
-    o.dynamics.stable_checks = chosen->matcher.dynamics.stable_checks;
+    o.dynamics.energy_interval = chosen.matcher.dynamics.energy_interval;
+    o.dynamics.stable_checks = chosen.matcher.dynamics.stable_checks;
   }
   if (auto w = hnn::ParseWeightStorage(strings["weights"])) {
     o.opencl.storage = *w;
@@ -261,6 +256,29 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
     }
     o.candidates.z_range_mm = std::make_pair(zmin, zmax);
   }
+}
+
+MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
+                                       const vision::MatcherOptions& base) {
+  MatcherSettings settings;
+  settings.preset = preset;
+  settings.matcher = base;
+  vision::MatcherOptions& o = settings.matcher;
+  std::map<std::string, std::string> strings = StringOptionDefaults();
+  for (const auto& [raw_name, value] : overrides) {
+    const std::string name = CanonicalName(raw_name);
+    settings.given[name] = value;
+    if (auto direct = DirectOptions().find(name); direct != DirectOptions().end()) {
+      direct->second(name, value, o);
+    } else if (strings.count(name) > 0) {
+      strings[name] = value;
+    } else {
+      throw std::invalid_argument("unknown option " + Quoted(raw_name) +
+                                  " (the match command's flags without dashes, e.g. max-features)");
+    }
+  }
+  ApplyPreset(preset, strings, settings);
+  ParseNamedSettings(strings, settings, *vision::FindPreset(preset));
   const double memory_budget_mb = ParseDouble("memory-budget-mb", strings["memory-budget-mb"]);
   // Bounded above so that the conversion to bytes is defined (inf or 1e300 would not fit a
   // size_t: undefined behaviour, seen as a budget of 0 MB). 2^40 MB is beyond any machine.
@@ -273,7 +291,9 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   // The geometry (rectified or not) is settled by the call; check the rest now.
   vision::MatcherOptions rest = o;
   rest.candidates.rectified = true;
-  if (auto error = rest.Check(); !error.empty()) throw std::invalid_argument(error);
+  if (auto error = rest.Check(); !error.empty()) {
+    throw std::invalid_argument(InOptionNames(error, MatcherOptionNameTable()));
+  }
   return settings;
 }
 
@@ -296,6 +316,43 @@ void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings)
       o.energy.support_radius_px = fallback->matcher.energy.support_radius_px;
     }
   }
+}
+
+std::string InOptionNames(std::string message, const OptionNameTable& table) {
+  auto is_word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  for (const auto& [field, option] : table) {
+    for (std::size_t at = message.find(field); at != std::string::npos;
+         at = message.find(field, at + 1)) {
+      const std::size_t end = at + field.size();
+      if ((at > 0 && (is_word(message[at - 1]) || message[at - 1] == '-')) ||
+          (end < message.size() && is_word(message[end]))) {
+        continue;
+      }
+      message.replace(at, field.size(), option);
+      at += option.size() - 1;
+    }
+  }
+  return message;
+}
+
+const OptionNameTable& MatcherOptionNameTable() {
+  static const OptionNameTable table = {
+      {"time_step", "--dt"},
+      {"max_steps", "--max-steps"},
+      {"max_updates", "--max-updates"},
+      {"alpha", "--alpha"},
+      {"theta", "--theta"},
+      {"lambda", "--lambda"},
+      {"support_radius_px", "--support-radius"},
+      {"top_k", "--top-k"},
+      {"min_disparity", "--min-disparity"},
+      {"max_disparity", "--max-disparity"},
+      {"max_epipolar_distance_px", "--max-epipolar"},
+      {"zncc_window", "--zncc-window"},
+      {"min_confidence", "--min-confidence"},
+      {"max_features", "--max-features"},
+  };
+  return table;
 }
 
 }  // namespace hnnstereo::api

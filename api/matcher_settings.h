@@ -8,6 +8,7 @@
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "vision/matcher_presets.h"
@@ -37,5 +38,16 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
 /// The feature-vs-disparity network needs rectified rows: on a calibrated, unrectified pair fall
 /// back to the feature-vs-feature network of preset hnn-geometry-lr (unless "network" was given).
 void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings);
+
+/// A field name -> option name table, e.g. {"time_step", "--dt"}.
+using OptionNameTable = std::vector<std::pair<std::string, std::string>>;
+
+/// `message` (an options struct's Check()) with every whole-word field name of `table` replaced
+/// by the option that sets it, so errors name what the user typed: one way to name options in
+/// errors, for the CLI, the facade and Python.
+std::string InOptionNames(std::string message, const OptionNameTable& table);
+
+/// The matcher's fields and their `match` options (the names ResolveMatcherSettings accepts).
+const OptionNameTable& MatcherOptionNameTable();
 
 }  // namespace hnnstereo::api

@@ -49,7 +49,8 @@ void ProgressBar(int done, int total, const std::string& what) {
   std::fflush(stderr);
 }
 
-void RunBench(BenchArgs& args) {
+// The bench options from the command line (settings, sizes, engines, storages).
+void ResolveBenchOptions(BenchArgs& args) {
   args.flags.Resolve();
   perf::ThroughputBenchOptions& bench = args.bench;
   bench.matcher = args.flags.options;
@@ -84,15 +85,9 @@ void RunBench(BenchArgs& args) {
     bench.sparse_sizes = {500, 5000};
     bench.repeats = 3;
   }
-  bench.progress = ProgressBar;
-  const bool wants_opencl = std::find(bench.engines.begin(), bench.engines.end(),
-                                      hnn::EngineKind::kOpenCL) != bench.engines.end();
-  std::unique_ptr<ocl::Runtime> runtime =
-      OpenRuntimeFor(wants_opencl ? hnn::EngineKind::kOpenCL : hnn::EngineKind::kCpu,
-                     args.flags.device);
-  const nlohmann::json json = perf::RunThroughputBench(bench, runtime.get());
-  calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
+}
 
+void PrintBandwidths(const nlohmann::json& json) {
   if (json.contains("machine_read_gbps")) {
     std::printf("machine read bandwidth: %.1f GB/s (%s)\n", json["machine_read_gbps"].get<double>(),
                 json["machine_read_method"].get<std::string>().c_str());
@@ -105,6 +100,10 @@ void RunBench(BenchArgs& args) {
     std::printf("opencl roofline: %.1f GB/s = %s\n", json["opencl_roofline_gbps"].get<double>(),
                 json["opencl_roofline_basis"].get<std::string>().c_str());
   }
+}
+
+// One row per run: case, engine, sizes, times, roofline fraction, energy, precision.
+void PrintRunTable(const nlohmann::json& json) {
   std::printf("%-12s %-20s %7s %9s %9s %8s %8s %5s %8s %6s %13s %8s\n", "case", "engine", "neurons",
               "conn", "total ms", "weights", "solve", "steps", "ms/step", "roof", "energy",
               "prec1px");
@@ -138,6 +137,9 @@ void RunBench(BenchArgs& args) {
                     ? std::to_string(run["precision_1px"].get<double>()).substr(0, 5).c_str()
                     : "-");
   }
+}
+
+void PrintProfiles(const nlohmann::json& json) {
   for (const auto& run : json["runs"]) {
     if (!run.contains("profile")) continue;
     const auto& profile = run["profile"];
@@ -156,6 +158,10 @@ void RunBench(BenchArgs& args) {
                   command["us_each"].get<double>(), command["device_ms"].get<double>());
     }
   }
+}
+
+// StereoSGBM on the same pair, the batch and the dense comparisons.
+void PrintComparisons(const nlohmann::json& json) {
   std::printf("StereoSGBM (same pair, %d disparities): %.1f ms (x_stereo_sgbm in the JSON: each "
               "case's total / this)\n",
               json["stereo_sgbm"]["num_disparities"].get<int>(), json["stereo_sgbm"]["ms"].get<double>());
@@ -176,6 +182,25 @@ void RunBench(BenchArgs& args) {
                 d["thesis_weights_plus_solve_ms"].get<double>(), d["opencl_energy_final"].get<double>(),
                 d["thesis_energy_final"].get<double>());
   }
+}
+
+void RunBench(BenchArgs& args) {
+  CheckOutputsWritable({{"--out", args.out}});
+  ResolveBenchOptions(args);
+  perf::ThroughputBenchOptions& bench = args.bench;
+  bench.progress = ProgressBar;
+  const bool wants_opencl = std::find(bench.engines.begin(), bench.engines.end(),
+                                      hnn::EngineKind::kOpenCL) != bench.engines.end();
+  std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(wants_opencl ? hnn::EngineKind::kOpenCL : hnn::EngineKind::kCpu,
+                     args.flags.device);
+  const nlohmann::json json = perf::RunThroughputBench(bench, runtime.get());
+  calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
+
+  PrintBandwidths(json);
+  PrintRunTable(json);
+  PrintProfiles(json);
+  PrintComparisons(json);
   std::printf("wrote %s\n", args.out.c_str());
 }
 

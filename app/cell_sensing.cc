@@ -1,5 +1,7 @@
 #include "app/cell_sensing.h"
 
+#include "app/cli_support.h"
+
 #include <stdexcept>
 
 #include "vision/lens_distortion.h"
@@ -140,16 +142,16 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
                          const std::string& calibration_name, const CellSensingFlags& flags,
                          ocl::Runtime* runtime) {
   SensedPair pair;
-  pair.left = vision::LoadImage(left_path);
-  pair.right = vision::LoadImage(right_path);
-  vision::CheckSameSize(pair.left, pair.right);
-  if (calibration.image_width > 0 && (calibration.image_width != pair.left.grey.cols ||
-                                      calibration.image_height != pair.left.grey.rows)) {
-    throw std::invalid_argument("calibration '" + calibration_name + "' is for " +
-                                std::to_string(calibration.image_width) + "x" +
-                                std::to_string(calibration.image_height) + " images, the pair is " +
-                                std::to_string(pair.left.grey.cols) + "x" +
-                                std::to_string(pair.left.grey.rows));
+  // An image that cannot be read is a refused setup (exit 2 from pick; serve's loop publishes
+  // it as that cycle's sensing error).
+  AsSetupError([&] {
+    pair.left = vision::LoadImage(left_path);
+    pair.right = vision::LoadImage(right_path);
+    vision::CheckSameSize(pair.left, pair.right);
+  });
+  if (auto problem = calibration.ImageSizeProblem(pair.left.grey.cols, pair.left.grey.rows);
+      !problem.empty()) {
+    throw std::invalid_argument("--calib '" + calibration_name + "' " + problem);
   }
   // Named after the options here; SensePositions checks again for library callers.
   vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");

@@ -1,6 +1,9 @@
 #include "app/cli_support.h"
 
+#include "api/match_pipeline.h"
 #include "calib/input_limits.h"
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
 
@@ -110,6 +113,14 @@ std::vector<std::string> ExpandConfigArguments(
   return expanded;
 }
 
+vision::MatcherPreset MatcherFlags::ShownPreset() const {
+  // The defaults shown are the ones that run: those of the default preset (hnn-default), which
+  // --preset replaces (tests/app/docs_defaults_test.cc checks them against REPORT.json).
+  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback, hnn-geometry-lr.
+  return unrectified_cell ? vision::FindPreset("hnn-geometry-lr").value()
+                          : vision::AccurateDefaultPreset();
+}
+
 void MatcherFlags::AddTo(CLI::App* cmd) {
   auto& o = options;
   cmd->add_option("--features", features,
@@ -133,12 +144,7 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
                   "Largest distance (px) of a candidate from its epipolar line")
       ->capture_default_str();
-  // The defaults shown are the ones that run: those of the default preset (hnn-default), which
-  // --preset replaces (tests/app/docs_defaults_test.cc checks them against REPORT.json).
-  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback, hnn-geometry-lr.
-  const vision::MatcherPreset shown = unrectified_cell
-                                          ? vision::FindPreset("hnn-geometry-lr").value()
-                                          : vision::AccurateDefaultPreset();
+  const vision::MatcherPreset shown = ShownPreset();
   top_k_option = cmd->add_option("--top-k", o.candidates.top_k,
                                  "Keep the K best-correlated candidates per left feature (0 = all; "
                                  "default: the preset's)")
@@ -172,6 +178,12 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->capture_default_str();
   cmd->add_option("--device", device,
                   "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
+  AddEngineFlags(cmd);
+}
+
+void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
+  auto& o = options;
+  const vision::MatcherPreset shown = ShownPreset();
                   "first GPU, else the first device)");
   cmd->add_option("--preset", preset,
                   "Named settings: hnn-default (geometry x similarity compatibility, the census "
@@ -185,8 +197,9 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
                       "hnn-thesis thesis): thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
                       "geometry-similarity")
           ->default_str(std::string(hnn::ObjectiveName(shown.matcher.energy.objective)));
-  cmd->add_flag("--no-lr-check", no_left_right_check,
-                "Skip the preset's left-right consistency check");
+  cmd->add_flag("--no-lr-check,!--lr-check", no_left_right_check,
+                "--no-lr-check skips the preset's left-right consistency check; --lr-check keeps "
+                "it (the presets' default)");
   support_radius_option = cmd->add_option(
       "--support-radius", o.energy.support_radius_px,
       "Sparse networks: connect neurons whose left features are within this many px (default: "
@@ -196,7 +209,12 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
   cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
   cmd->add_option("--D", o.energy.D, "Energy weight of the epipolar distance")->capture_default_str();
-  cmd->add_option("--lambda", o.energy.lambda, "eq. 6.6 slope")->capture_default_str();
+  cmd->add_option("--lambda", o.energy.lambda, "e  AddEnergyFlags(cmd);
+}
+
+void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
+  auto& o = options;
+q. 6.6 slope")->capture_default_str();
   cmd->add_option("--theta", o.energy.theta, "eq. 6.6 centre")->capture_default_str();
   cmd->add_flag("--distance-attenuation", o.energy.distance_attenuation,
                 "Printed-code attenuation of weights between far-apart left features");
@@ -277,30 +295,58 @@ void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {
 }
 
 std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::string& device) {
-  if (engine != hnn::EngineKind::kOpenCL) return nullptr;
-  const ocl::DeviceSelection from_environment = ocl::DeviceSelection::FromEnvironment();
-  ocl::DeviceSelection selection = from_environment;
-  if (!device.empty()) selection.device = device;
-  std::string why_not;
-  auto runtime = ocl::Runtime::Create(selection, &why_not);
-  if (runtime) return runtime;
-  if (selection.empty()) {
-    // Nothing was asked for: the cpu engine runs the same dynamics (the matcher says so).
-    return nullptr;
+  std::string notice;  // the matcher's report names the cpu fallback
+  return api::OpenRuntime(engine, device, &notice);
+}
+
+bool IsOutputOption(const std::string& long_name) {
+  static const std::set<std::string> kOutputs = {"out",       "report",     "overlay",
+                                                 "ply",       "histogram",  "energy-plot",
+                                                 "plot",      "markdown",   "save-network",
+                                                 "disparity"};
+  return kOutputs.count(long_name) > 0;
+}
+
+bool IsImageOutputOption(const std::string& option) {
+  return option == "--overlay" || option == "--histogram" || option == "--energy-plot" ||
+         option == "--plot" || option == "--disparity";
+}
+
+void RefuseOutputsOverInputs(const CLI::App& command) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<std::string, std::string>> outputs, inputs;
+  for (const CLI::Option* option : command.get_options()) {
+    if (option->get_lnames().empty() || option->get_expected_max() == 0) continue;  // flags
+    const std::string name = option->get_lnames().front();
+    for (const std::string& value : option->results()) {
+      if (value.empty()) continue;
+      if (IsOutputOption(name)) {
+        outputs.emplace_back("--" + name, value);
+      } else if (name == "robot" && value.rfind("dryrun:", 0) == 0) {
+        outputs.emplace_back("--robot", value.substr(7));
+      } else {
+        inputs.emplace_back("--" + name, value);
+      }
+    }
   }
-  // A device that was asked for and does not exist is an error, never a silent fallback.
-  std::string asked;
-  if (!device.empty()) {
-    asked = "--device '" + device + "'";
-  } else if (!from_environment.device.empty()) {
-    asked = "HNNSTEREO_OPENCL_DEVICE='" + from_environment.device + "'";
+  std::error_code error;
+  auto resolved = [&](const std::string& path) { return fs::weakly_canonical(path, error); };
+  for (const auto& [option, path] : outputs) {
+    const fs::path target = resolved(path);
+    if (error || !fs::exists(target, error)) continue;  // a new file overwrites nothing
+    for (const auto& [input_option, input_path] : inputs) {
+      if (!fs::exists(input_path, error)) continue;
+      const fs::path input = resolved(input_path);
+      if (input == target) {
+        throw std::invalid_argument(option + " '" + path + "' would overwrite the input " +
+                                    input_option);
+      }
+      if (fs::is_directory(input, error) && target.parent_path() == input) {
+        throw std::invalid_argument(option + " '" + path + "' would overwrite a file of the input "
+                                    "folder " + input_option + " '" + input_path + "'");
+      }
+    }
   }
-  if (!from_environment.platform.empty()) {
-    asked += std::string(asked.empty() ? "" : " with ") + "HNNSTEREO_OPENCL_PLATFORM='" +
-             from_environment.platform + "'";
-  }
-  throw std::invalid_argument(asked + ": " + why_not + " (see 'hnnstereo devices'; --engine cpu "
-                              "runs without OpenCL)");
 }
 
 void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
@@ -324,6 +370,14 @@ void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>
     }
     if (fs::is_directory(target, error)) {
       throw std::invalid_argument(option + " '" + path + "' is a folder, not a file");
+    }
+    if (IsImageOutputOption(option) && !cv::haveImageWriter(path)) {
+      throw std::invalid_argument(option + " '" + path + "': no image format has the extension '" +
+                                  target.extension().string() + "' (use .png)");
+    }
+    if (option == "--disparity" && target.extension() != ".pfm" && target.extension() != ".png") {
+      throw std::invalid_argument(option + " '" + path + "': use .pfm (float) or .png (16-bit, "
+                                  "KITTI scaling)");
     }
     const fs::path folder = target.parent_path();
     if (!fs::is_directory(folder, error)) {
@@ -359,10 +413,14 @@ void CheckOutputFolderWritable(const std::string& option, const std::string& fol
   while (!fs::exists(folder, error) && folder.has_parent_path() && folder != folder.parent_path()) {
     folder = folder.parent_path();
   }
-  if (!fs::is_directory(folder, error) || ::access(folder.c_str(), W_OK | X_OK) != 0) {
+  // Try what the command will do (access() says yes to root on /proc and read-only mounts).
+  const fs::path probe =
+      folder / (".hnnstereo-write-test-" + std::to_string(static_cast<long>(::getpid())));
+  if (!fs::is_directory(folder, error) || !fs::create_directory(probe, error)) {
     throw std::invalid_argument(option + " '" + folder_path + "': folder '" + folder.string() +
                                 "' is not writable");
   }
+  fs::remove(probe, error);
 }
 
 }  // namespace hnnstereo::app

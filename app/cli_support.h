@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -70,6 +71,11 @@ struct MatcherFlags {
   /// unrectified pair fall back to the feature-vs-feature network of preset hnn-geometry-lr
   /// (unless --network was given). Call after Resolve() once the geometry is known.
   void UseFeatureNetworkUnlessRectified(bool rectified);
+ private:
+  void AddEngineFlags(CLI::App* cmd);  ///< AddTo's engine, device, preset and network flags
+  void AddEnergyFlags(CLI::App* cmd);  ///< AddTo's energy, dynamics and decoding flags
+  /// The preset whose values --help shows as defaults (the one that runs by default).
+  vision::MatcherPreset ShownPreset() const;
 };
 
 /// The OpenCL runtime for `engine` == opencl; nullptr for the other engines, or when no OpenCL
@@ -81,10 +87,38 @@ std::unique_ptr<ocl::Runtime> OpenRuntimeFor(hnn::EngineKind engine, const std::
 /// Checks, before any work, that every output file can be written: its folder exists and takes
 /// a new file (the atomic write's temporary), the path is not a folder, not read-only, and no two
 /// outputs are the same file, and none is one of `inputs` (an overlay written over the left
-/// image). Both hold (option name, path) pairs; empty paths are skipped.
+/// image), and image outputs have an extension OpenCV writes. Both hold (option name, path)
+/// pairs; empty paths are skipped.
 /// Throws std::invalid_argument naming the option and the path.
 void CheckOutputsWritable(const std::vector<std::pair<std::string, std::string>>& outputs,
                           const std::vector<std::pair<std::string, std::string>>& inputs = {});
+
+/// Runs `load` (reading the images, the calibration, ...) and turns whatever it throws into
+/// std::invalid_argument: an input that cannot be used, found before any work, is a refused
+/// setup (exit 2), like a bad option.
+template <class Load>
+auto AsSetupError(Load&& load) -> decltype(load()) {
+  try {
+    return load();
+  } catch (const std::invalid_argument&) {
+    throw;
+  } catch (const std::exception& error) {
+    throw std::invalid_argument(error.what());
+  }
+}
+
+/// The options whose value is a file the command writes. `--robot dryrun:FILE` writes FILE too.
+bool IsOutputOption(const std::string& long_name);
+
+/// The output options that write an image (checked against cv::haveImageWriter before work).
+bool IsImageOutputOption(const std::string& option);
+
+/// One guard for every command, run once its command line is parsed and before it works: no
+/// output (IsOutputOption, or a dryrun: link's file) may be a file the command reads - the
+/// value of any other option that names an existing file, or an existing file directly inside
+/// an option's existing folder (calibrate --dir). Paths are compared resolved (`./a` == `a`,
+/// links followed). Throws std::invalid_argument naming both options and the path.
+void RefuseOutputsOverInputs(const CLI::App& command);
 
 /// Checks that `folder_path` (an output folder the command creates if needed) is not a file and
 /// that its nearest existing ancestor is writable. Throws std::invalid_argument naming `option`.

@@ -107,6 +107,7 @@ vision::MatcherPreset ApplyOverrides(vision::MatcherPreset preset, const EvalArg
 }
 
 void RunEval(EvalArgs& args) {
+  CheckOutputsWritable({{"--out", args.out}, {"--markdown", args.markdown}, {"--plot", args.plot}});
   const auto engine = vision::ParseEngine(args.engine);
   if (!engine) throw std::invalid_argument("--engine: unknown '" + args.engine + "'");
   // Bounded so that the conversion to bytes below is defined (inf, NaN or 1e300 do not fit a

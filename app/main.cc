@@ -53,6 +53,15 @@ void AddQuietEverywhere(CLI::App* app) {
   }
 }
 
+// Every command refuses, before it works, an output that would overwrite one of its inputs
+// (app/cli_support.h, RefuseOutputsOverInputs): one guard, run when the command line is parsed.
+void GuardOutputsEverywhere(CLI::App* app) {
+  for (CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) {
+    sub->parse_complete_callback([sub] { hnnstereo::app::RefuseOutputsOverInputs(*sub); });
+    GuardOutputsEverywhere(sub);
+  }
+}
+
 // Help laid out the same way everywhere: description, usage, options, then the examples. A
 // description that carries its examples ("...\nExample...") gives them to the footer.
 void ExamplesAfterOptions(CLI::App* app) {
@@ -108,6 +117,7 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddProbeCommand(app);
   hnnstereo::app::AddDevicesCommand(app);
   AddQuietEverywhere(&app);
+  GuardOutputsEverywhere(&app);
   ExamplesAfterOptions(&app);
 
   std::vector<std::string> arguments(argv, argv + argc);

@@ -3,6 +3,8 @@
 #include <iostream>
 #include <memory>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "api/match_pipeline.h"
 #include "app/cli_support.h"
@@ -22,12 +24,114 @@ namespace hnnstereo::app {
 namespace {
 
 struct MatchArgs {
-  std::string left, right, calib, out, report, overlay, save_network;
+  std::string left, right, calib, out, report, overlay, save_network, disparity;
   bool rectified = false;
   bool quiet = false;
   std::string config;  // consumed by ExpandConfigArguments in main
   MatcherFlags flags;
 };
+
+// The pair and its geometry, checked before any work.
+struct MatchInputs {
+  vision::LoadedImage left, right;
+  std::unique_ptr<calib::StereoCalibration> calibration;  ///< null for a rectified pair
+  vision::PairComparison comparison;
+};
+
+// Loads and checks the pair and the calibration (a missing or unreadable image, or a calibration
+// that does not load, is a refused setup), and settles whether the pair is rectified.
+MatchInputs LoadMatchInputs(const MatchArgs& args, vision::MatcherOptions* options) {
+  MatchInputs inputs = AsSetupError([&] {
+    MatchInputs loaded;
+    if (!args.calib.empty()) {
+      loaded.calibration =
+          std::make_unique<calib::StereoCalibration>(calib::LoadCalibration(args.calib));
+    }
+    loaded.left = vision::LoadImage(args.left);
+    loaded.right = vision::LoadImage(args.right);
+    return loaded;
+  });
+  if (inputs.calibration ? inputs.calibration->rectified : args.rectified) {
+    options->candidates.rectified = true;
+  }
+  inputs.comparison = api::CheckMatchSetup(inputs.left.grey, inputs.right.grey,
+                                           inputs.calibration.get(), *options, "--left and --right");
+  if (!args.disparity.empty() && !options->candidates.rectified) {
+    throw std::invalid_argument("--disparity needs a rectified pair (--rectified, or a rectified "
+                                "--calib): only there is x_l - x_r a disparity");
+  }
+  return inputs;
+}
+
+// Neither --calib nor --rectified: F estimated from confident correlation matches, then matched
+// with the soft epipolar term (projective cameras; no heights).
+std::unique_ptr<calib::StereoCalibration> EstimatedCalibration(const MatchInputs& inputs,
+                                                               bool quiet) {
+  const vision::UncalibratedReport estimate =
+      vision::EstimateEpipolarGeometry(inputs.left.grey, inputs.right.grey);
+  if (!quiet) {
+    std::printf("estimated F from %d putative matches: %d inliers, mean epipolar distance "
+                "%.2f px (%.0f ms)\n",
+                estimate.n_putative, estimate.fundamental.num_inliers,
+                estimate.fundamental.mean_epipolar_distance_px, estimate.time_ms);
+  }
+  return std::make_unique<calib::StereoCalibration>(estimate.calibration);
+}
+
+void WarnIfSwapped(const vision::PairComparison& comparison) {
+  std::cerr << "hnnstereo: warning: --left and --right look swapped: "
+            << static_cast<int>(100.0 * comparison.negative_shift_fraction + 0.5)
+            << "% of the textured blocks that moved lie at negative disparity (x_left - x_right "
+               "< 0); swap the two images\n";
+}
+
+// Writes every output asked for (each atomically) and returns their paths, in order.
+std::vector<std::string> WriteMatchOutputs(const MatchArgs& args, const MatchInputs& inputs,
+                                           const vision::MatchReport& report,
+                                           const vision::MatcherOptions& options,
+                                           const std::string& network_bytes) {
+  calib::WriteFileAtomically(args.out, vision::MatchesCsv(report));
+  if (!args.report.empty()) {
+    nlohmann::json json =
+        api::MatchReportJson(report, options, args.flags.preset, args.flags.refinement);
+    json["left"] = args.left;
+    json["right"] = args.right;
+    calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
+  }
+  if (!args.save_network.empty()) calib::WriteFileAtomically(args.save_network, network_bytes);
+  if (!args.disparity.empty()) {
+    vision::WriteDisparityMap(args.disparity, vision::SparseDisparityMap(
+                                                  report, inputs.left.grey.rows,
+                                                  inputs.left.grey.cols));
+  }
+  if (!args.overlay.empty()) {
+    vision::WritePngAtomically(
+        args.overlay, vision::DrawMatchOverlay(inputs.left.original, inputs.right.original, report));
+  }
+  std::vector<std::string> written;
+  for (const std::string* path :
+       {&args.out, &args.report, &args.save_network, &args.disparity, &args.overlay}) {
+    if (!path->empty()) written.push_back(*path);
+  }
+  return written;
+}
+
+void PrintMatchSummary(const vision::MatchReport& report, const std::vector<std::string>& written) {
+  const vision::TimingMs& t = report.timing_ms;
+  std::printf(
+      "%zu matches from %d left / %d right features (%d neurons, %lld connections)\n"
+      "engine %s on %s: %d iterations, %s, energy %.3f -> %.3f\n"
+      "time: features %.1f ms, candidates %.1f ms, network %.1f ms, weights %.1f ms, solve %.1f "
+      "ms, decode %.1f ms, total %.1f ms\n",
+      report.matches.size(), report.n_left, report.n_right, report.n_neurons,
+      static_cast<long long>(report.n_connections), report.solve.engine.c_str(),
+      report.solve.device.c_str(), report.solve.iterations, report.solve.termination.c_str(),
+      report.solve.energy_initial, report.solve.energy_final, t.features, t.candidates, t.network,
+      t.weights, t.solve, t.decode, t.total);
+  std::string list;
+  for (const std::string& path : written) list += (list.empty() ? "" : ", ") + path;
+  std::printf("wrote %s\n", list.c_str());
+}
 
 void RunMatch(MatchArgs& args) {
   args.flags.Resolve();
@@ -35,51 +139,22 @@ void RunMatch(MatchArgs& args) {
   // The whole setup is checked before any work (each check is milliseconds): the outputs, the
   // pair, the disparity range, the device.
   CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay},
-                        {"--save-network", args.save_network}},
+                        {"--save-network", args.save_network}, {"--disparity", args.disparity}},
                        {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
-  const vision::LoadedImage left = vision::LoadImage(args.left);
-  const vision::LoadedImage right = vision::LoadImage(args.right);
-  vision::CheckSameSize(left, right);
-  const vision::PairComparison comparison = vision::ComparePair(left.grey, right.grey);
-  if (auto problem = vision::DistinctViewsProblem(comparison, "--left and --right"); !problem.empty()) {
-    throw std::invalid_argument(problem);
-  }
-
-  std::unique_ptr<calib::StereoCalibration> calibration;
-  if (!args.calib.empty()) {
-    calibration = std::make_unique<calib::StereoCalibration>(calib::LoadCalibration(args.calib));
-    if (calibration->rectified) options.candidates.rectified = true;
-  } else if (args.rectified) {
-    options.candidates.rectified = true;
-  }
-  if (options.candidates.rectified && !options.candidates.dense) {
-    const std::string problem = vision::DisparityRangeProblem(
-        options.candidates.min_disparity, options.candidates.max_disparity, left.grey.cols);
-    if (!problem.empty()) throw std::invalid_argument(problem);
-  }
+  MatchInputs inputs = LoadMatchInputs(args, &options);
   std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
-  if (!calibration && !args.rectified) {
-    // Neither: estimate F from confident correlation matches, then match with the soft
-    // epipolar term (projective cameras; no heights).
-    // (The pair was checked above: one image twice would "estimate" F from perfect matches.)
-    const vision::UncalibratedReport estimate = vision::EstimateEpipolarGeometry(left.grey, right.grey);
-    calibration = std::make_unique<calib::StereoCalibration>(estimate.calibration);
-    if (!args.quiet) {
-      std::printf("estimated F from %d putative matches: %d inliers, mean epipolar distance "
-                  "%.2f px (%.0f ms)\n",
-                  estimate.n_putative, estimate.fundamental.num_inliers,
-                  estimate.fundamental.mean_epipolar_distance_px, estimate.time_ms);
-    }
+  // (The pair was checked above: one image twice would "estimate" F from perfect matches.)
+  if (!inputs.calibration && !args.rectified) {
+    inputs.calibration = EstimatedCalibration(inputs, args.quiet);
   }
   args.flags.UseFeatureNetworkUnlessRectified(options.candidates.rectified);
-  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
-  if (options.candidates.rectified && comparison.looks_swapped) {
-    std::cerr << "hnnstereo: warning: --left and --right look swapped: "
-              << static_cast<int>(100.0 * comparison.negative_shift_fraction + 0.5)
-              << "% of the textured blocks that moved lie at negative disparity (x_left - x_right "
-                 "< 0); swap the two images\n";
+  if (auto error = options.Check(); !error.empty()) {
+    throw std::invalid_argument(api::InOptionNames(error, api::MatcherOptionNameTable()));
   }
-  if (options.candidates.z_range_mm && !calibration) {
+  if (options.candidates.rectified && inputs.comparison.looks_swapped) {
+    WarnIfSwapped(inputs.comparison);
+  }
+  if (options.candidates.z_range_mm && !inputs.calibration) {
     throw std::invalid_argument("--zrange needs --calib (heights come from P1 and P2)");
   }
 
@@ -93,39 +168,16 @@ void RunMatch(MatchArgs& args) {
     };
   }
   // The library facade's pipeline (undistort, match, refine, back to the pixels as given).
-  const vision::MatchReport report = api::RunMatchPipeline(
-      left.grey, right.grey, calibration.get(), options, args.flags.refinement, runtime.get());
-
-  // Everything is computed before anything is written; each file is written atomically.
-  calib::WriteFileAtomically(args.out, vision::MatchesCsv(report));
-  if (!args.report.empty()) {
-    nlohmann::json json =
-        api::MatchReportJson(report, options, args.flags.preset, args.flags.refinement);
-    json["left"] = args.left;
-    json["right"] = args.right;
-    calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
+  const vision::MatchReport report =
+      api::RunMatchPipeline(inputs.left.grey, inputs.right.grey, inputs.calibration.get(), options,
+                            args.flags.refinement, runtime.get());
+  // Everything is computed before anything is written.
+  const std::vector<std::string> written =
+      WriteMatchOutputs(args, inputs, report, options, network_bytes);
+  if (!report.engine_notice.empty()) {
+    std::cerr << "hnnstereo: notice: " << report.engine_notice << "\n";
   }
-  if (!args.save_network.empty()) calib::WriteFileAtomically(args.save_network, network_bytes);
-  if (!args.overlay.empty()) {
-    vision::WritePngAtomically(args.overlay,
-                               vision::DrawMatchOverlay(left.original, right.original, report));
-  }
-  if (!report.engine_notice.empty()) std::cerr << "hnnstereo: notice: " << report.engine_notice << "\n";
-  if (!args.quiet) {
-    std::printf(
-        "%zu matches from %d left / %d right features (%d neurons, %lld connections)\n"
-        "engine %s on %s: %d iterations, %s, energy %.3f -> %.3f\n"
-        "time: features %.1f ms, candidates %.1f ms, network %.1f ms, weights %.1f ms, solve %.1f "
-        "ms, decode %.1f ms, total %.1f ms\nwrote %s%s%s%s%s\n",
-        report.matches.size(), report.n_left, report.n_right, report.n_neurons,
-        static_cast<long long>(report.n_connections), report.solve.engine.c_str(),
-        report.solve.device.c_str(), report.solve.iterations, report.solve.termination.c_str(),
-        report.solve.energy_initial, report.solve.energy_final, report.timing_ms.features,
-        report.timing_ms.candidates, report.timing_ms.network, report.timing_ms.weights, report.timing_ms.solve,
-        report.timing_ms.decode, report.timing_ms.total, args.out.c_str(),
-        args.report.empty() ? "" : ", ", args.report.c_str(), args.overlay.empty() ? "" : ", ",
-        args.overlay.c_str());
-  }
+  if (!args.quiet) PrintMatchSummary(report, written);
 }
 
 }  // namespace
@@ -153,6 +205,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output MATCHES.csv")->required();
   cmd->add_option("--report", args->report, "Output REPORT.json");
   cmd->add_option("--overlay", args->overlay, "Output PNG: features and matched features");
+  cmd->add_option("--disparity", args->disparity,
+                  "Output sparse disparity map of a rectified pair, d = x_l - x_r at each match's "
+                  "left pixel: .pfm float32 with NaN where nothing matched, or .png uint16 in the "
+                  "KITTI scaling (256 d, 0 = no match)");
   cmd->add_option("--save-network", args->save_network,
                   "Output: the Hopfield network as solved (problem, energy and dynamics; binary "
                   "HNNET1) - replay and time it on any OpenCL device with hnnstereo_replay "

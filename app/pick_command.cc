@@ -4,6 +4,8 @@
 #include <iostream>
 #include <memory>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "app/cell_sensing.h"
 #include "app/cli_support.h"
@@ -28,59 +30,34 @@ struct PickArgs {
   RobotLinkFlags link;
 };
 
-void RunPick(PickArgs& args) {
-  args.cell.Resolve();
-  if (!args.link.frame.empty() && args.link.robot.empty()) {
-    throw std::invalid_argument("--frame is used with --robot URI (the link to send the picks to)");
+// No part: were the images given the wrong way round? Swapped cameras put the triangulated
+// points behind them, or the images correlate far better the other way round.
+void ThrowIfLooksSwapped(const SensedPair& pair, const calib::StereoCalibration& calibration,
+                         const PickArgs& args) {
+  const auto& counts = pair.report.triangulation;
+  const std::pair<double, double> z_range =
+      args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
+  const vision::SwapComparison swap =
+      vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+  if ((counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) || swap.looks_swapped) {
+    throw std::runtime_error(
+        "no parts, and --left and --right look swapped: " + std::to_string(counts.behind_camera) +
+        " of " + std::to_string(counts.behind_camera + counts.accepted) +
+        " triangulated points behind the cameras; median ZNCC along the epipolar lines " +
+        std::to_string(swap.as_given_zncc).substr(0, 4) + " as given, " +
+        std::to_string(swap.swapped_zncc).substr(0, 4) + " swapped");
   }
-  // The whole setup is checked before the slow part: outputs, device, calibration, the link
-  // (and FRAME.yml); SenseCellPair checks the pair before matching.
-  CheckOutputsWritable({{"--out", args.out},
-                        {"--overlay", args.overlay},
-                        {"--ply", args.ply},
-                        {"--histogram", args.histogram},
-                        {"--energy-plot", args.energy_plot}},
-                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
-  std::unique_ptr<ocl::Runtime> runtime =
-      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
-  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
-  robot::RobotFrame frame;
-  std::unique_ptr<robot::RobotLink> link;
-  if (!args.link.robot.empty()) link = args.link.Open(&frame);
-  const SensedPair pair =
-      SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
-  const vision::PositionSensingReport& report = pair.report;
-  const cv::Mat& left_grey = pair.left_grey;
-  const vision::LoadedImage& left = pair.left;
-  if (report.objects.empty()) {
-    // No part: were the images given the wrong way round? Swapped cameras put the triangulated
-    // points behind them, or the images correlate far better the other way round.
-    const auto& counts = report.triangulation;
-    const std::pair<double, double> z_range =
-        args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
-    const vision::SwapComparison swap =
-        vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
-    if ((counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) || swap.looks_swapped) {
-      throw std::runtime_error(
-          "no parts, and --left and --right look swapped: " + std::to_string(counts.behind_camera) +
-          " of " + std::to_string(counts.behind_camera + counts.accepted) +
-          " triangulated points behind the cameras; median ZNCC along the epipolar lines " +
-          std::to_string(swap.as_given_zncc).substr(0, 4) + " as given, " +
-          std::to_string(swap.swapped_zncc).substr(0, 4) + " swapped");
-    }
-  }
+}
 
-  // Everything is computed before anything is written; each file is written atomically.
-  nlohmann::json json = vision::ObjectsJson(report, args.cell.sensing);
-  json["left"] = args.left;
-  json["right"] = args.right;
-  json["calib"] = args.calib;
-  calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
+// Writes every output asked for (each atomically) and returns their paths, in order.
+std::vector<std::string> WritePickOutputs(const PickArgs& args, const SensedPair& pair,
+                                          const calib::StereoCalibration& calibration) {
+  const vision::PositionSensingReport& report = pair.report;
+  calib::WriteFileAtomically(
+      args.out, ObjectsFileJson(pair, args.cell, args.left, args.right, args.calib).dump(2) + "\n");
   if (!args.overlay.empty()) {
-    vision::WritePngAtomically(args.overlay,
-                               vision::DrawObjectOverlay(
-                                   left_grey.data == left.grey.data ? left.original : left_grey,
-                                   report, calibration.P1));
+    vision::WritePngAtomically(
+        args.overlay, vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1));
   }
   if (!args.ply.empty()) {
     std::vector<int> labels(report.points_in_world.size(), -1);
@@ -97,45 +74,52 @@ void RunPick(PickArgs& args) {
   if (!args.energy_plot.empty()) {
     vision::WritePngAtomically(args.energy_plot, vision::PlotEnergyTrace(report.match.solve));
   }
-  if (!report.match.engine_notice.empty()) {
-    std::cerr << "hnnstereo: notice: " << report.match.engine_notice << "\n";
+  std::vector<std::string> written;
+  for (const std::string* path :
+       {&args.out, &args.overlay, &args.ply, &args.histogram, &args.energy_plot}) {
+    if (!path->empty()) written.push_back(*path);
   }
-  if (link) {
-    // One cycle through the link: push transports send at once, polled ones (Modbus server,
-    // vision server) wait for the robot side's trigger up to --ack-timeout.
-    const auto objects = SensedObjectsOf(report);
-    const double capture_time_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-    robot::CellLoopOptions loop = args.link.LoopOptions();
-    loop.cycles = 1;
-    loop.idle_limit = loop.ack_timeout;
-    loop.stop_requested = InstallStopSignals();
-    if (!args.quiet) {
-      std::printf("link: %s\n", link->Describe().c_str());
-      std::fflush(stdout);
-      loop.on_cycle = PrintCycleLine;
-    }
-    const robot::CellLoopReport sent = robot::RunCellLoop(
-        *link, frame, [&] { return robot::SensedCycle{objects, capture_time_s}; }, loop);
-    if (sent.idle_timeout) {
-      throw std::runtime_error("no trigger from " + link->Describe() + " within --ack-timeout " +
-                               "(OBJECTS.json was written; nothing was sent)");
-    }
+  return written;
+}
+
+// One cycle through the link: push transports send at once, polled ones (Modbus server, vision
+// server) wait for the robot side's trigger up to --ack-timeout.
+void SendOneCycle(robot::RobotLink& link, const robot::RobotFrame& frame, const PickArgs& args,
+                  const vision::PositionSensingReport& report) {
+  const auto objects = SensedObjectsOf(report);
+  const double capture_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  robot::CellLoopOptions loop = args.link.LoopOptions();
+  loop.cycles = 1;
+  loop.idle_limit = loop.ack_timeout;
+  loop.stop_requested = InstallStopSignals();
+  if (!args.quiet) {
+    std::printf("link: %s\n", link.Describe().c_str());
+    std::fflush(stdout);
+    loop.on_cycle = PrintCycleLine;
   }
-  if (args.quiet) return;
+  const robot::CellLoopReport sent = robot::RunCellLoop(
+      link, frame, [&] { return robot::SensedCycle{objects, capture_time_s}; }, loop);
+  if (sent.idle_timeout) {
+    throw std::runtime_error("no trigger from " + link.Describe() + " within --ack-timeout " +
+                             "(OBJECTS.json was written; nothing was sent)");
+  }
+}
+
+void PrintPickSummary(const PickArgs& args, const vision::PositionSensingReport& report,
+                      const std::vector<std::string>& written) {
   const auto& t = report.triangulation;
   std::printf(
       "%zu matches -> %d points (%d weak: edge along the epipolar line; rejected: %d behind a "
       "camera, %d residual > %.1f px, %d degenerate) -> %zu parts (%s clustering)\n",
       report.match.matches.size(), t.accepted, t.edge_along_epipolar, t.behind_camera,
-      t.large_residual,
-      args.cell.sensing.max_reprojection_error_px, t.degenerate, report.objects.size(),
-      args.cell.clustering.c_str());
+      t.large_residual, args.cell.sensing.max_reprojection_error_px, t.degenerate,
+      report.objects.size(), args.cell.clustering.c_str());
   std::printf("%3s %9s %9s %9s %8s %7s %7s\n", "id", "x mm", "y mm", "height", "yaw deg", "moments",
               "points");
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {
-    // A round part's yaw is free: it is sent as 0.
+    // A round part has no yaw (null in OBJECTS.json; the link sends 0).
     if (pose.round) {
       std::printf("%3d %9.1f %9.1f %9.1f %8s %7s %7d\n", id++, pose.centroid.x(),
                   pose.centroid.y(), pose.height_mm, "round", "-", pose.points);
@@ -144,11 +128,46 @@ void RunPick(PickArgs& args) {
     std::printf("%3d %9.1f %9.1f %9.1f %8.1f %7.1f %7d\n", id++, pose.centroid.x(),
                 pose.centroid.y(), pose.height_mm, pose.yaw_deg, pose.yaw_moments_deg, pose.points);
   }
+  std::string list;
+  for (const std::string& path : written) list += (list.empty() ? "" : ", ") + path;
   std::printf("time: match %.0f ms (solve %.0f ms, %s), refine %.1f ms, triangulate %.1f ms, "
               "cluster %.1f ms, poses %.1f ms\nwrote %s\n",
               report.timing_ms.match, report.match.timing_ms.solve,
-              report.match.solve.engine.c_str(), report.timing_ms.refine, report.timing_ms.triangulate,
-              report.timing_ms.cluster, report.timing_ms.pose, args.out.c_str());
+              report.match.solve.engine.c_str(), report.timing_ms.refine,
+              report.timing_ms.triangulate, report.timing_ms.cluster, report.timing_ms.pose,
+              list.c_str());
+}
+
+void RunPick(PickArgs& args) {
+  args.cell.Resolve();
+  if (!args.link.frame.empty() && args.link.robot.empty()) {
+    throw std::invalid_argument("--frame is used with --robot URI (the link to send the picks to)");
+  }
+  // The whole setup is checked before the slow part: outputs, device, calibration, the link
+  // (and FRAME.yml); SenseCellPair checks the pair before matching.
+  CheckOutputsWritable({{"--out", args.out},
+                        {"--overlay", args.overlay},
+                        {"--ply", args.ply},
+                        {"--histogram", args.histogram},
+                        {"--energy-plot", args.energy_plot}},
+                       {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
+  std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+  const calib::StereoCalibration calibration =
+      AsSetupError([&] { return calib::LoadCalibration(args.calib); });
+  robot::RobotFrame frame;
+  std::unique_ptr<robot::RobotLink> link;
+  if (!args.link.robot.empty()) link = args.link.Open(&frame);
+  const SensedPair pair =
+      SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
+  if (pair.report.objects.empty()) ThrowIfLooksSwapped(pair, calibration, args);
+  // Everything is computed before anything is written.
+  const std::vector<std::string> written = WritePickOutputs(args, pair, calibration);
+  if (!pair.report.match.engine_notice.empty()) {
+    std::cerr << "hnnstereo: notice: " << pair.report.match.engine_notice << "\n";
+  }
+  if (link) SendOneCycle(*link, frame, args, pair.report);
+  if (!args.quiet) PrintPickSummary(args, pair.report, written);
 }
 
 }  // namespace

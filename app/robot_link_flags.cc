@@ -1,5 +1,8 @@
 #include "app/robot_link_flags.h"
 
+#include "api/matcher_settings.h"
+#include "robot/modbus_registers.h"
+
 #include <algorithm>
 #include <chrono>
 #include <csignal>
@@ -10,6 +13,20 @@ namespace hnnstereo::app {
 namespace {
 
 std::atomic<bool> g_stop_requested{false};
+
+// The link's option fields and the flags that set them (errors name the flags).
+const api::OptionNameTable& LinkOptionNameTable() {
+  static const api::OptionNameTable table = {
+      {"max_speed_fraction", "--max-speed"}, {"max_reach_mm", "--max-reach"},
+      {"speed_fraction", "--speed"},         {"approach_mm", "--approach"},
+      {"retreat_mm", "--retreat"},           {"max_poses", "--max-poses"},
+      {"io_timeout", "--io-timeout"},        {"heartbeat_period", "--heartbeat"}};
+  return table;
+}
+
+void ThrowIfProblem(const std::string& problem) {
+  if (!problem.empty()) throw std::invalid_argument(api::InOptionNames(problem, LinkOptionNameTable()));
+}
 
 extern "C" void OnStopSignal(int) { g_stop_requested.store(true); }
 
@@ -60,7 +77,7 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
                                 "with 'hnnstereo robot fit-frame' or 'robot thesis-frame'");
   }
   robot::ParseLinkUri(robot);  // a bad URI fails before any file is read
-  if (auto error = planning.Check(); !error.empty()) throw std::invalid_argument(error);
+  ThrowIfProblem(planning.Check());
   if (!(io_timeout_ms >= 1.0) || !(heartbeat_ms >= 1.0) || !(ack_timeout_s > 0.0)) {
     throw std::invalid_argument("--io-timeout, --heartbeat and --ack-timeout must be positive");
   }
@@ -70,12 +87,12 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
   limits.workspace_max = loaded.workspace_max;
   limits.max_reach_mm = max_reach_mm;
   limits.max_speed_fraction = max_speed;
-  if (auto error = limits.Check(); !error.empty()) throw std::invalid_argument(error);
+  ThrowIfProblem(limits.Check());
   robot::LinkOptions options;
   options.io_timeout = std::chrono::milliseconds(static_cast<long>(io_timeout_ms));
   options.heartbeat_period = std::chrono::milliseconds(static_cast<long>(heartbeat_ms));
   options.max_poses = max_poses;
-  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  ThrowIfProblem(options.Check());
   if (frame_out != nullptr) *frame_out = loaded;
   return robot::OpenLink(robot, robot::SafetyGate(limits, true), options);
 }
@@ -116,9 +133,11 @@ nlohmann::json CellLoopReportJson(const robot::CellLoopReport& report) {
 }
 
 void PrintCycleLine(const robot::CycleLog& log) {
+  // The status code the cell sees (docs/robot.md): 2 result ready, or a negative error code.
+  const int status = log.status < 0 ? log.status : robot::modbus::kStatusResultReady;
   std::printf("cycle %d request %u: %d parts, %d sent, %d refused, status %d%s%s, %s, sense %.0f "
               "ms, cycle %.0f ms\n",
-              log.cycle, log.request_sequence, log.objects, log.published, log.refused, log.status,
+              log.cycle, log.request_sequence, log.objects, log.published, log.refused, status,
               log.error.empty() ? "" : " ", log.error.empty() ? "" : ("(" + log.error + ")").c_str(),
               AckName(log.ack), log.sense_ms, log.cycle_ms);
   std::fflush(stdout);

@@ -8,8 +8,11 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "app/cell_page_flags.h"
 #include "app/cell_sensing.h"
@@ -23,10 +26,17 @@
 namespace hnnstereo::app {
 namespace {
 
+/// The default pace of a self-triggered link: one cycle a second writes a few dryrun: lines a
+/// second (about 1 KB/s), never a disk's worth.
+constexpr double kSelfTriggeredPeriodS = 1.0;
+
 struct ServeArgs {
   std::string left, right, calib, replay, capture, report;
   int cycles = 0;
   double idle_limit_s = 0.0;
+  /// --period (s) between cycle starts; unset = kSelfTriggeredPeriodS for dryrun: and serial:
+  /// (they trigger at once, so an unpaced loop would re-sense as fast as it can), 0 otherwise.
+  std::optional<double> period_s;
   std::string config;  // consumed by ExpandConfigArguments in main
   CellSensingFlags cell;
   RobotLinkFlags link;
@@ -45,9 +55,13 @@ std::string ReadText(const std::string& path) {
   return text.str();
 }
 
-void RunServe(ServeArgs& args) {
+// The command line's own checks, before anything is read or opened.
+void CheckServeArgs(ServeArgs& args) {
   if (args.cycles < 0) throw std::invalid_argument("--cycles must be >= 0 (0 = until a stop)");
   if (!(args.idle_limit_s >= 0.0)) throw std::invalid_argument("--idle-limit must be >= 0");
+  if (args.period_s && !(*args.period_s >= 0.0 && *args.period_s <= 86400.0)) {
+    throw std::invalid_argument("--period must be in [0, 86400] s");
+  }
   const bool sensing = args.replay.empty();
   if (sensing && (args.left.empty() || args.right.empty() || args.calib.empty())) {
     throw std::invalid_argument("serve needs --left, --right and --calib (or --replay "
@@ -58,50 +72,88 @@ void RunServe(ServeArgs& args) {
     throw std::invalid_argument("--replay replaces sensing: drop --left/--right/--calib/--capture");
   }
   if (args.link.robot.empty()) args.link.robot = "dryrun:picks.jsonl";
+  // Images read on every trigger must exist now, unless --capture writes them first.
+  if (sensing && args.capture.empty()) {
+    for (const auto& [option, path] : {std::pair{"--left", args.left}, {"--right", args.right}}) {
+      std::error_code error;
+      if (!std::filesystem::is_regular_file(path, error)) {
+        throw std::invalid_argument(std::string(option) + " '" + path + "' does not exist (serve "
+                                    "reads it on every trigger; --capture CMD writes it first)");
+      }
+    }
+  }
+  CheckOutputsWritable({{"--report", args.report}});
+}
+
+// What each trigger senses: the pair read again (after --capture), or the --replay objects.
+// Everything is loaded and checked when this is made, before the link opens (a PLC sees no
+// half-started server); the kernels are compiled now, not on the first trigger.
+class CellSensor {
+ public:
+  CellSensor(ServeArgs& args, std::optional<web::CellStatusRecorder>* status)
+      : args_(args), status_(*status) {
+    if (!args.replay.empty()) {
+      replayed_ = robot::SensedObjectsFromJson(ReadText(args.replay));
+      if (status_) replayed_file_ = nlohmann::json::parse(ReadText(args.replay));
+      return;
+    }
+    args.cell.Resolve();
+    calibration_ = AsSetupError([&] { return calib::LoadCalibration(args.calib); });
+    runtime_ = OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
+    WarmUpCellKernels(runtime_.get(), args.cell.sensing.matcher);
+  }
+
+  robot::SensedCycle operator()() {
+    if (!args_.replay.empty()) {
+      if (status_) status_->SetSensed(replayed_file_, {}, {});
+      return robot::SensedCycle{replayed_, SteadySeconds()};
+    }
+    if (!args_.capture.empty()) {
+      const int code = std::system(args_.capture.c_str());
+      if (code != 0) {
+        throw std::runtime_error("--capture command exited with status " + std::to_string(code));
+      }
+    }
+    const double capture_time_s = SteadySeconds();
+    const SensedPair pair = SenseCellPair(args_.left, args_.right, calibration_, args_.calib,
+                                          args_.cell, runtime_.get());
+    if (status_) {
+      status_->SetSensed(ObjectsFileJson(pair, args_.cell, args_.left, args_.right, args_.calib),
+                         OverlayImageOf(pair), calibration_.P1);
+    }
+    return robot::SensedCycle{SensedObjectsOf(pair.report), capture_time_s};
+  }
+
+ private:
+  ServeArgs& args_;
+  std::optional<web::CellStatusRecorder>& status_;
+  calib::StereoCalibration calibration_;
+  std::unique_ptr<ocl::Runtime> runtime_;
+  std::vector<robot::SensedObject> replayed_;
+  nlohmann::json replayed_file_;
+};
+
+robot::CellLoopOptions ServeLoopOptions(const ServeArgs& args) {
+  robot::CellLoopOptions loop = args.link.LoopOptions();
+  loop.cycles = args.cycles;
+  loop.idle_limit = std::chrono::milliseconds(static_cast<long>(args.idle_limit_s * 1000.0));
+  const std::string scheme = robot::ParseLinkUri(args.link.robot).scheme;
+  const bool self_triggered = scheme == "dryrun" || scheme == "serial";
+  const double period_s = args.period_s.value_or(self_triggered ? kSelfTriggeredPeriodS : 0.0);
+  loop.min_cycle_period = std::chrono::milliseconds(static_cast<long>(period_s * 1000.0));
+  loop.stop_requested = InstallStopSignals();
+  loop.on_cycle = PrintCycleLine;
+  return loop;
+}
+
+void RunServe(ServeArgs& args) {
+  CheckServeArgs(args);
   const std::optional<web::CellPageOptions> page = args.page.Resolve();
   // The page reads snapshots the loop publishes after each cycle (web/cell_status.h).
   web::CellStatusBoard board;
   std::optional<web::CellStatusRecorder> status;
   if (page) status.emplace(&board, "serve");
-
-  // Everything that can be checked is checked before the link opens (a PLC sees no half-started
-  // server): the sensing flags, the calibration, the replayed objects, the frame.
-  robot::SenseFunction sense;
-  calib::StereoCalibration calibration;
-  std::vector<robot::SensedObject> replayed;
-  nlohmann::json replayed_file;
-  std::unique_ptr<ocl::Runtime> runtime;
-  if (sensing) {
-    args.cell.Resolve();
-    calibration = calib::LoadCalibration(args.calib);
-    runtime = OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
-    // Compile the kernels now, not on the first trigger (the PLC would wait for it).
-    WarmUpCellKernels(runtime.get(), args.cell.sensing.matcher);
-    sense = [&] {
-      if (!args.capture.empty()) {
-        const int code = std::system(args.capture.c_str());
-        if (code != 0) {
-          throw std::runtime_error("--capture command exited with status " + std::to_string(code));
-        }
-      }
-      const double capture_time_s = SteadySeconds();
-      const SensedPair pair = SenseCellPair(args.left, args.right, calibration, args.calib,
-                                            args.cell, runtime.get());
-      if (status) {
-        status->SetSensed(ObjectsFileJson(pair, args.cell, args.left, args.right, args.calib),
-                          OverlayImageOf(pair), calibration.P1);
-      }
-      return robot::SensedCycle{SensedObjectsOf(pair.report), capture_time_s};
-    };
-  } else {
-    replayed = robot::SensedObjectsFromJson(ReadText(args.replay));
-    if (status) replayed_file = nlohmann::json::parse(ReadText(args.replay));
-    sense = [&] {
-      if (status) status->SetSensed(replayed_file, {}, {});
-      return robot::SensedCycle{replayed, SteadySeconds()};
-    };
-  }
-  CheckOutputsWritable({{"--report", args.report}});
+  CellSensor sensor(args, &status);
   robot::RobotFrame frame;
   // The page binds before the link opens: an address in use fails before a PLC sees anything.
   std::unique_ptr<web::CellPageServer> page_server;
@@ -111,11 +163,7 @@ void RunServe(ServeArgs& args) {
   }
   std::unique_ptr<robot::RobotLink> link = args.link.Open(&frame);
 
-  robot::CellLoopOptions loop = args.link.LoopOptions();
-  loop.cycles = args.cycles;
-  loop.idle_limit = std::chrono::milliseconds(static_cast<long>(args.idle_limit_s * 1000.0));
-  loop.stop_requested = InstallStopSignals();
-  loop.on_cycle = PrintCycleLine;
+  robot::CellLoopOptions loop = ServeLoopOptions(args);
   std::printf("link: %s\n", link->Describe().c_str());
   std::fflush(stdout);
   if (status) {
@@ -126,7 +174,8 @@ void RunServe(ServeArgs& args) {
     loop.on_idle = [&] { status->RecordLink(*link); };
     status->PublishNow(link.get());
   }
-  const robot::CellLoopReport report = robot::RunCellLoop(*link, frame, sense, loop);
+  const robot::CellLoopReport report =
+      robot::RunCellLoop(*link, frame, [&] { return sensor(); }, loop);
   const nlohmann::json json = CellLoopReportJson(report);
   std::printf("served %d cycles: %d poses sent, %d refused, %d sensing errors, %d ack timeouts, "
               "%d peers lost%s%s\n",
@@ -167,6 +216,10 @@ void AddServeCommand(CLI::App& app) {
   cmd->add_option("--idle-limit", args->idle_limit_s,
                   "Exit when no trigger came for this long (s; 0 = wait forever)")
       ->capture_default_str();
+  cmd->add_option("--period", args->period_s,
+                  "At least this long between the starts of two cycles (s). Default: 1 for "
+                  "dryrun: and serial: (they trigger at once), 0 for links the robot side "
+                  "triggers");
   cmd->add_option("--report", args->report, "Write the loop's counters as JSON at exit");
   args->link.AddTo(cmd,
                    "The link: dryrun:FILE.jsonl (default dryrun:picks.jsonl), "

@@ -68,6 +68,12 @@ void StereoCalibration::DeriveFromProjections() {
   C2 = CameraCentre(P2);
 }
 
+std::string StereoCalibration::ImageSizeProblem(int cols, int rows) const {
+  if (image_width <= 0 || (image_width == cols && image_height == rows)) return {};
+  return "is for " + std::to_string(image_width) + "x" + std::to_string(image_height) +
+         " images, the pair is " + std::to_string(cols) + "x" + std::to_string(rows);
+}
+
 std::string StereoCalibration::Check() const {
   if (!AllFinite(P1) || !AllFinite(P2)) return "P1 or P2 has non-finite values";
   if (!AllFinite(F)) return "F has non-finite values (NaN or infinity)";

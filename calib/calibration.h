@@ -37,6 +37,9 @@ struct StereoCalibration {
   void DeriveFromProjections();
   /// Empty when usable; otherwise a one-line reason (non-finite values, rank-deficient P...).
   std::string Check() const;
+  /// Empty when images of cols x rows fit this calibration (or it records no size); otherwise
+  /// "is for WxH images, the pair is cols x rows" - P and F hold for the calibrated size only.
+  std::string ImageSizeProblem(int cols, int rows) const;
 };
 
 /// Reads a CAL.yml (OpenCV FileStorage YAML) or a Middlebury calib.txt (chosen by content).

@@ -1,6 +1,9 @@
 #include "robot/cell_loop.h"
 
+#include <algorithm>
+#include <optional>
 #include <stdexcept>
+#include <thread>
 
 namespace hnnstereo::robot {
 namespace {
@@ -17,6 +20,7 @@ std::string CellLoopOptions::Check() const {
   if (trigger_poll.count() <= 0) return "trigger_poll must be positive";
   if (ack_timeout.count() <= 0) return "ack_timeout must be positive";
   if (idle_limit.count() < 0) return "idle_limit must be >= 0";
+  if (min_cycle_period.count() < 0) return "min_cycle_period must be >= 0";
   return planning.Check();
 }
 
@@ -30,10 +34,21 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
     return options.stop_requested != nullptr && options.stop_requested->load();
   };
   auto idle_since = std::chrono::steady_clock::now();
+  std::optional<std::chrono::steady_clock::time_point> last_cycle_start;
   while (options.cycles == 0 || report.cycles < options.cycles) {
     if (stop_requested()) {
       report.stopped = true;
       break;
+    }
+    if (last_cycle_start) {
+      // Pace the loop: sleep in short slices so a stop request is still seen at once.
+      const auto next_start = *last_cycle_start + options.min_cycle_period;
+      const auto now = std::chrono::steady_clock::now();
+      if (now < next_start) {
+        std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
+            next_start - now, std::chrono::milliseconds(50)));
+        continue;
+      }
     }
     const Trigger trigger = link.WaitForTrigger(options.trigger_poll);
     if (trigger.kind == TriggerKind::kStop) {
@@ -50,6 +65,7 @@ CellLoopReport RunCellLoop(RobotLink& link, const RobotFrame& frame, const Sense
       continue;
     }
     const auto cycle_start = std::chrono::steady_clock::now();
+    last_cycle_start = cycle_start;
     CycleLog log;
     log.cycle = ++report.cycles;
     log.request_sequence = trigger.request_sequence;

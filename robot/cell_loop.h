@@ -48,6 +48,9 @@ struct CellLoopOptions {
   std::chrono::milliseconds ack_timeout{10000};
   /// Give up waiting for any trigger after this long without one; 0 = wait forever.
   std::chrono::milliseconds idle_limit{0};
+  /// At least this long between the starts of two cycles; 0 = none. Self-triggered links
+  /// (dryrun:, serial:) trigger at once, so this is what paces them.
+  std::chrono::milliseconds min_cycle_period{0};
   PickPlanningOptions planning;
   const std::atomic<bool>* stop_requested = nullptr;  ///< e.g. set by SIGINT; may be null
   std::function<void(const CycleLog&)> on_cycle;      ///< called after every cycle; may be empty

@@ -1,11 +1,13 @@
 // dryrun:FILE.jsonl - the default transport: every published pick (and every cycle) becomes one
-// JSON line, flushed as it is written, so a cell can be commissioned without a robot.
+// JSON line, flushed as it is written, so a cell can be commissioned without a robot. A file that
+// exists is appended to, never truncated: it is a log of every run.
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "robot/link.h"
+#include "robot/modbus_registers.h"
 
 namespace hnnstereo::robot {
 namespace {
@@ -23,7 +25,7 @@ class DryRunLink final : public RobotLink {
  public:
   DryRunLink(const LinkUri& uri, SafetyGate gate, LinkOptions options)
       : RobotLink(std::move(gate), std::move(options)), path_(uri.path) {
-    out_.open(path_, std::ios::out | std::ios::trunc);
+    out_.open(path_, std::ios::out | std::ios::app);
     if (!out_) throw std::runtime_error("dryrun: cannot write '" + path_ + "'");
   }
 
@@ -46,7 +48,8 @@ class DryRunLink final : public RobotLink {
   void Send(const CycleResult& admitted) override {
     Write({{"type", "cycle"},
            {"request_sequence", admitted.request_sequence},
-           {"status", admitted.status},
+           // The code the cell sees (docs/robot.md): 2 result ready, or a LinkErrorCode.
+           {"status", admitted.status < 0 ? admitted.status : modbus::kStatusResultReady},
            {"error", admitted.error},
            {"poses", admitted.picks.size()}});
     for (const PickCommand& pick : admitted.picks) {

@@ -70,17 +70,18 @@ std::vector<SensedObject> SensedObjectsFromJson(const std::string& json_text) {
       object.top_centre_world = {centroid[0].get<double>(), centroid[1].get<double>(),
                                  centroid[2].get<double>()};
       object.height_mm = item.at("height").get<double>();
-      object.yaw_deg = item.at("yaw_deg").get<double>();
-      // A round part has no orientation: its yaw is free, and 0 is sent (no needless wrist turn).
-      if (item.contains("round") && item["round"].is_boolean() && item["round"].get<bool>()) {
-        object.yaw_deg = 0.0;
-      }
+      // A round part has no orientation (yaw_deg null in OBJECTS.json): 0 is sent, no needless
+      // wrist turn. Every other part needs a number.
+      const bool round =
+          item.contains("round") && item["round"].is_boolean() && item["round"].get<bool>();
+      object.yaw_deg = round ? 0.0 : item.at("yaw_deg").get<double>();
       object.merged = item.value("merged", false);
       objects.push_back(object);
     } catch (const std::exception&) {
       throw std::invalid_argument(
           "OBJECTS.json: object " + std::to_string(objects.size() + 1) +
-          " needs id, centroid [x, y, z], height and yaw_deg (numbers)");
+          " needs id, centroid [x, y, z], height and yaw_deg (numbers; yaw_deg may be "
+          "null for a round part)");
     }
   }
   return objects;

@@ -1,6 +1,13 @@
 #include "vision/match_io.h"
 
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <stdexcept>
+
+#include "vision/overlay.h"
 
 namespace hnnstereo::vision {
 
@@ -115,6 +122,40 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                   "surface_residual"}},
                      {"rows", std::move(rows)}};
   return json;
+}
+
+cv::Mat SparseDisparityMap(const MatchReport& report, int rows, int cols) {
+  cv::Mat disparity(rows, cols, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  for (const auto& match : report.matches) {
+    const int x = static_cast<int>(std::lround(match.left.x()));
+    const int y = static_cast<int>(std::lround(match.left.y()));
+    if (x < 0 || y < 0 || x >= cols || y >= rows) continue;
+    disparity.at<float>(y, x) = match.left.x() - match.right.x();
+  }
+  return disparity;
+}
+
+void WriteDisparityMap(const std::string& path, const cv::Mat& disparity) {
+  const std::string extension = std::filesystem::path(path).extension().string();
+  if (extension == ".pfm") {
+    WritePngAtomically(path, disparity);  // OpenCV picks the format by the extension
+    return;
+  }
+  if (extension != ".png") {
+    throw std::invalid_argument("disparity map '" + path + "': use .pfm (float) or .png (16-bit, "
+                                "KITTI scaling)");
+  }
+  // KITTI devkit: disparity = png / 256.0, 0 = invalid.
+  cv::Mat scaled(disparity.size(), CV_16U, cv::Scalar(0));
+  for (int y = 0; y < disparity.rows; ++y) {
+    for (int x = 0; x < disparity.cols; ++x) {
+      const float d = disparity.at<float>(y, x);
+      if (d > 0.0f && d * 256.0f <= 65535.0f) {
+        scaled.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(std::lround(d * 256.0f));
+      }
+    }
+  }
+  WritePngAtomically(path, scaled);
 }
 
 }  // namespace hnnstereo::vision

@@ -177,9 +177,9 @@ std::string DisparityRangeProblem(double min_disparity, double max_disparity, in
     return "--min-disparity/--max-disparity must be finite (got " + Fixed(min_disparity, 1) + ", " +
            Fixed(max_disparity, 1) + ")";
   }
-  if (!(min_disparity <= max_disparity)) {
-    return "--min-disparity " + Fixed(min_disparity, 1) + " is above --max-disparity " +
-           Fixed(max_disparity, 1);
+  if (!(min_disparity < max_disparity)) {
+    return "--max-disparity " + Fixed(max_disparity, 1) + " must be above --min-disparity " +
+           Fixed(min_disparity, 1) + " (the disparity search range)";
   }
   if (image_width > 0) {
     const double limit = image_width - 1;

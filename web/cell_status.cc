@@ -36,7 +36,8 @@ const char* AckName(robot::AckKind ack) {
 // pixels, projected with P1 at the top face's height.
 struct PartPixels {
   std::vector<cv::Point2d> outline;  ///< closed polygon; empty when the file has no top face
-  cv::Point2d centre, yaw_tip;
+  cv::Point2d centre;
+  std::optional<cv::Point2d> yaw_tip;  ///< none for a round part
 };
 
 constexpr double kYawLineMm = 40.0;  // as vision::DrawObjectOverlay
@@ -49,6 +50,14 @@ std::optional<cv::Point2d> Project(const calib::ProjectionMatrix& P1, const Eige
   return cv::Point2d(h.x() / h.z(), h.y() / h.z());
 }
 
+// The part's yaw (deg); none for a round part (yaw_deg null or round true) or a missing one.
+std::optional<double> YawOf(const nlohmann::json& object) {
+  if (object.value("round", false)) return std::nullopt;
+  const auto yaw = object.find("yaw_deg");
+  if (yaw == object.end() || !yaw->is_number()) return std::nullopt;
+  return yaw->get<double>();
+}
+
 // Null when the object lacks a centroid or a point falls behind the camera.
 std::optional<PartPixels> PartInImage(const nlohmann::json& object,
                                       const calib::ProjectionMatrix& P1) {
@@ -56,14 +65,18 @@ std::optional<PartPixels> PartInImage(const nlohmann::json& object,
     const auto& c = object.at("centroid");
     const Eigen::Vector3d centre(c.at(0).get<double>(), c.at(1).get<double>(),
                                  c.at(2).get<double>());
-    const double yaw = object.value("yaw_deg", 0.0) * std::numbers::pi / 180.0;
     PartPixels pixels;
     const auto centre_px = Project(P1, centre);
-    const auto tip_px =
-        Project(P1, centre + kYawLineMm * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0));
-    if (!centre_px || !tip_px) return std::nullopt;
+    if (!centre_px) return std::nullopt;
     pixels.centre = *centre_px;
-    pixels.yaw_tip = *tip_px;
+    // A round part (yaw_deg null) has no orientation, so no yaw line.
+    if (const auto yaw_deg = YawOf(object)) {
+      const double yaw = *yaw_deg * std::numbers::pi / 180.0;
+      const auto tip_px =
+          Project(P1, centre + kYawLineMm * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0));
+      if (!tip_px) return std::nullopt;
+      pixels.yaw_tip = *tip_px;
+    }
     std::vector<Eigen::Vector3d> outline;
     if (object.value("round", false) && object.contains("top_circle")) {
       const auto& circle = object.at("top_circle");
@@ -139,7 +152,8 @@ nlohmann::json CellState::PartsJson() const {
     const nlohmann::json& object = list[index];
     nlohmann::json part = {{"id", object.value("id", static_cast<int>(index) + 1)},
                            {"height", object.value("height", 0.0)},
-                           {"yaw_deg", object.value("yaw_deg", 0.0)},
+                           {"yaw_deg", YawOf(object) ? nlohmann::json(*YawOf(object))
+                                                     : nlohmann::json(nullptr)},
                            {"points", object.value("points", 0)},
                            {"colour", HexColour(vision::LabelColour(static_cast<int>(index)))}};
     if (object.contains("centroid") && object["centroid"].is_array() &&
@@ -160,7 +174,7 @@ nlohmann::json CellState::PartsJson() const {
     if (P1 && !left_image.empty()) {
       if (const auto pixels = PartInImage(object, *P1)) {
         part["centre_px"] = PointJson(pixels->centre);
-        part["yaw_tip_px"] = PointJson(pixels->yaw_tip);
+        if (pixels->yaw_tip) part["yaw_tip_px"] = PointJson(*pixels->yaw_tip);
         nlohmann::json outline = nlohmann::json::array();
         for (const cv::Point2d& p : pixels->outline) outline.push_back(PointJson(p));
         part["outline_px"] = outline;
@@ -264,7 +278,9 @@ cv::Mat CellState::DrawOverlay() const {
       cv::polylines(canvas, polygon, true, colour, 2, cv::LINE_AA);
     }
     cv::drawMarker(canvas, pixels->centre, colour, cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
-    cv::arrowedLine(canvas, pixels->centre, pixels->yaw_tip, colour, 2, cv::LINE_AA, 0, 0.2);
+    if (pixels->yaw_tip) {
+      cv::arrowedLine(canvas, pixels->centre, *pixels->yaw_tip, colour, 2, cv::LINE_AA, 0, 0.2);
+    }
     const int id = list[index].value("id", static_cast<int>(index) + 1);
     char label[64];
     std::snprintf(label, sizeof label, "%d: %.1f mm", id, list[index].value("height", 0.0));

@@ -69,6 +69,16 @@ class MatchResult:
                 f"{self.report.get('engine')}, {self.report.get('timing_ms', {}).get('total', 0):.1f} ms>")
 
 
+def _image(image, name):
+    """The image as a numpy array, or a one-line ValueError (never the other image's pixels)."""
+    if image is None:
+        raise ValueError(f"the {name} image is None (cv2.imread returns None for a path it "
+                         "cannot read)")
+    if not hasattr(image, "__array_interface__"):
+        raise ValueError(f"the {name} image must be a numpy array, not {type(image).__name__}")
+    return image
+
+
 class Matcher:
     """A preset plus overrides, with its OpenCL device opened once. One thread at a time."""
 
@@ -88,6 +98,7 @@ class Matcher:
 
     def match(self, left, right, *, max_disparity=64, calib=None):
         """Rectified pair (calib None: disparities up to max_disparity px) or calibrated pair."""
+        left, right = _image(left, "left"), _image(right, "right")
         with self._lock:
             if calib is None:
                 matches, report, _ = self._matcher.match_rectified(left, right, float(max_disparity))
@@ -126,5 +137,6 @@ def match(left, right, *, max_disparity=64, calib=None, preset="hnn-default", en
 def pick(left, right, calib, **options):
     """`hnnstereo pick` on a calibrated pair -> the OBJECTS.json objects as a list of dicts
     ({id, centroid [x, y, z], height, yaw_deg, points, ...}, mm, tallest first)."""
+    left, right = _image(left, "left"), _image(right, "right")
     text, _ = _sense_positions(left, right, _calibration(calib), _overrides(options))
     return _json.loads(text)["objects"]

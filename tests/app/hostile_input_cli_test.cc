@@ -267,7 +267,7 @@ TEST_F(HostileInputCli, ConfigYamlNonFiniteNumbersAreRefused) {
   ExpectRefused(match_with_config("input_a.yml", "A: 1e308\n"), 2,
                 "A must be >= 0 and <= 1e6");
   ExpectRefused(match_with_config("input_dt.yml", "dt: 1e308\n"), 2,
-                "time_step must be a positive number <= 1e6");
+                "--dt must be a positive number <= 1e6");
   // A --config file beyond the text-file limit (16 MiB) is not read into memory.
   {
     std::ofstream out(Path("input_big.yml"));

@@ -136,7 +136,7 @@ TEST_F(RobotCli, ServeReplaysObjectsThroughTheDryRunLink) {
   std::uint32_t last_sequence = 0;
   for (std::size_t i = 0; i < lines.size(); i += 3) {
     EXPECT_EQ(lines[i]["type"], "cycle");
-    EXPECT_EQ(lines[i]["status"], 0);
+    EXPECT_EQ(lines[i]["status"], 2) << "result ready (docs/robot.md status codes)";
     EXPECT_EQ(lines[i + 1]["object_id"], 2) << "tallest first";
     EXPECT_EQ(lines[i + 2]["object_id"], 1);
     const std::vector<double> expected = {-40.0, 60.0, 80.0};
@@ -241,11 +241,11 @@ TEST_F(RobotCli, ServeReadsTheImagesAgainOnEveryTrigger) {
     if (line["type"] == "cycle") cycles.push_back(line);
   }
   ASSERT_EQ(cycles.size(), 4u);
-  EXPECT_EQ(cycles[0]["status"], 0);
-  EXPECT_EQ(cycles[1]["status"], 0);
+  EXPECT_EQ(cycles[0]["status"], 2);
+  EXPECT_EQ(cycles[1]["status"], 2);
   EXPECT_EQ(cycles[2]["status"], -1) << "capture failed";
   EXPECT_NE(cycles[2]["error"].get<std::string>().find("--capture"), std::string::npos);
-  EXPECT_EQ(cycles[3]["status"], 0);
+  EXPECT_EQ(cycles[3]["status"], 2);
   std::ifstream truth_a(Path("a/truth.json")), truth_b(Path("b/truth.json"));
   const auto parts_a = nlohmann::json::parse(truth_a)["objects"].size();
   const auto parts_b = nlohmann::json::parse(truth_b)["objects"].size();

@@ -124,3 +124,24 @@ TEST(SafetyGate, NoFrameCalibrationSendsNothing) {
 
 }  // namespace
 }  // namespace hnnstereo::robot
+
+namespace hnnstereo::robot {
+namespace {
+
+TEST(PickPlanning, ARoundPartHasNoYawAndIsSentYawZero) {
+  // OBJECTS.json gives a round part yaw_deg null (vision::ObjectsJson); the link sends 0.
+  const std::vector<SensedObject> objects = SensedObjectsFromJson(
+      R"({"units":"mm","objects":[{"id":1,"centroid":[10,20,30],"height":30,"yaw_deg":null,
+          "round":true,"points":90},{"id":2,"centroid":[0,0,20],"height":20,"yaw_deg":12.5,
+          "round":false,"points":80}]})");
+  ASSERT_EQ(objects.size(), 2u);
+  EXPECT_EQ(objects[0].yaw_deg, 0.0);
+  EXPECT_EQ(objects[1].yaw_deg, 12.5);
+  // A part that is not round needs its yaw.
+  EXPECT_THROW(SensedObjectsFromJson(R"({"objects":[{"id":1,"centroid":[0,0,9],"height":9,
+                                         "yaw_deg":null}]})"),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace hnnstereo::robot

@@ -773,6 +773,19 @@ TEST(PositionSensing, TouchingPartsGiveNoUnflaggedPoseBetweenThem) {
   EXPECT_EQ(flagged, merged);
 }
 
+TEST(ObjectsJson, ARoundPartHasYawNull) {
+  // A round part has no orientation: OBJECTS.json says null rather than a meaningless angle.
+  PositionSensingReport report;
+  report.objects.resize(2);
+  report.objects[0].round = true;
+  report.objects[0].yaw_deg = 86.8;
+  report.objects[1].yaw_deg = 12.5;
+  const nlohmann::json json = ObjectsJson(report, PositionSensingOptions{});
+  ASSERT_EQ(json["objects"].size(), 2u);
+  EXPECT_TRUE(json["objects"][0]["yaw_deg"].is_null());
+  EXPECT_EQ(json["objects"][1]["yaw_deg"].get<double>(), 12.5);
+}
+
 // The thesis's robustness test: zero-mean Gaussian noise on the entries of F (unit Frobenius
 // norm), sigma = kFNoiseSigma. The test prints the mean epipolar distance this noise puts between
 // true correspondences (the calibrated F gives about 0.05 px).
