@@ -1,26 +1,18 @@
 // Modbus TCP transports of the robot link (issue 5; docs/robot_modbus.md), on libmodbus 3.1.6.
 //
 // modbus-server://HOST:PORT[?unit=N&connection=persistent|per-request]  the vision side is a Modbus TCP server the PLC polls.
-//   A background thread serves every connected client: one poll() over the listening socket
-//   and all clients, non-blocking reads into a buffer per connection, MBAP frames cut and
-//   answered here (not by libmodbus's modbus_receive/modbus_reply, which block on one socket
-//   until its frame is complete, and sleep before answering an unknown function code - one
-//   slow or hostile client then stalled every other, issue 15). Limits per connection and in
-//   all: LinkOptions::server (ServerLimits, robot/link.h). The register mapping is guarded by
-//   one mutex. Writes to the command register become events in a queue, so a fast PLC that
-//   writes "acknowledge" and then "trigger" loses neither.
+//   A background thread drives the TCP server core (robot/tcp_server.h: one poll() over the
+//   listening socket and all clients, non-blocking reads, the limits of LinkOptions::server);
+//   MBAP frames are cut and answered here (not by libmodbus's modbus_receive/modbus_reply,
+//   which block on one socket until its frame is complete, and sleep before answering an
+//   unknown function code - one slow or hostile client then stalled every other, issue 15).
+//   The register mapping is guarded by one mutex. Writes to the command register become events
+//   in a queue, so a fast PLC that writes "acknowledge" and then "trigger" loses neither.
 // modbus-client://HOST:PORT[?unit=N&poll_ms=M]  the vision side writes into the controller's
 //   registers (same map, roles swapped), polling the controller's command register.
 //
 // The register map and the word codec: robot/modbus_registers.h.
-#include <arpa/inet.h>
-#include <fcntl.h>
 #include <modbus/modbus.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,7 +22,6 @@
 #include <condition_variable>
 #include <cstring>
 #include <deque>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <set>

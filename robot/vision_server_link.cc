@@ -3,12 +3,10 @@
 // connects, sends `TRIG\n` and reads one line `(st,x,y,z,rx,ry,rz)\n` - the form URScript's
 // socket_read_ascii_float(7) parses. Protocol, units and codes: docs/robot_ascii.md.
 //
-// Plain POSIX sockets and poll(): one listening socket, one robot and whatever else connects
-// (monitors, scanners, hostile clients), a few bytes per cycle. No Debian library does such a
-// small line server better, and this keeps every wait bounded by a timeout we choose. Every
-// connection has its own buffers and timers and none is ever waited on except the robot's
-// reply in Send; limits (connections, line length, request rate, timeouts): LinkOptions::server
-// (robot/link.h). Single-threaded: all socket work happens inside the calls the cell loop makes
+// The TCP server core (robot/tcp_server.h) holds the listening socket, the robot and whatever
+// else connects (monitors, scanners, hostile clients), and their limits (LinkOptions::server);
+// this file is the line protocol on top. No connection is ever waited on except the robot's
+// reply in Send. Single-threaded: all socket work happens inside the calls the cell loop makes
 // (WaitForTrigger, Send, WaitForAcknowledge), so there is nothing to lock but the stop request,
 // which SendCellCommand may make from another thread.
 #include <poll.h>

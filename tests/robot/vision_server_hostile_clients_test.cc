@@ -171,42 +171,8 @@ TEST(VisionServerHostileClients, ARobotsThirtyCyclesWithinTwiceTheirTimeAlonePlu
   EXPECT_GT(counters[5]->status_minus_4, 10) << "malformed requests are answered -4";
 }
 
-TEST(VisionServerHostileClients, SilentAndTricklingConnectionsAreClosed) {
-  LinkOptions options = Options();
-  options.io_timeout = milliseconds(300);
-  options.server.first_request_timeout = milliseconds(500);
-  auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), options);
-  CellThread cell(*link);
-  HostileCrowd crowd;
-  HostileCounters* held = nullptr;
-  HostileCounters* trickle = nullptr;
-  MeasureAndCheck(*link, 10, [&](int port) {
-    held = &crowd.Add(port, 3, HeldOpen, 2, 1);
-    trickle = &crowd.Add(port, 2, ByteAtATime("XXXX", milliseconds(100)), 3, 1);
-    return std::vector<HostileCounters*>{held, trickle};
-  });
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while ((held->closed_by_server == 0 || trickle->closed_by_server == 0) &&
-         Clock::now() < deadline) {
-    std::this_thread::sleep_for(milliseconds(20));
-  }
-  crowd.Stop();
-  EXPECT_GT(held->closed_by_server, 0) << "no request within first_request_timeout";
-  EXPECT_GT(trickle->closed_by_server, 0) << "no valid request within first_request_timeout";
-}
-
-TEST(VisionServerHostileClients, AConnectionFloodCannotLockTheRobotOut) {
-  auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), Options());
-  CellThread cell(*link);
-  HostileCrowd crowd;
-  HostileCounters* flood = nullptr;
-  MeasureAndCheck(*link, 10, [&](int port) {
-    flood = &crowd.Add(port, 60, HeldOpen, 2, 6);  // 10 per host: both limits reached
-    return std::vector<HostileCounters*>{flood};
-  });
-  crowd.Stop();
-  EXPECT_GT(flood->closed_by_server, 0) << "connections beyond the limits are closed";
-}
+// The limits of the server core (connections in all and per peer, first request timeout,
+// request rate): tcp_server_test.cc.
 
 TEST(VisionServerHostileClients, ANewConnectionDoesNotDisplaceTheRobotUntilItSpeaks) {
   auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), Options());
