@@ -27,7 +27,9 @@ namespace {
 namespace mb = modbus;
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
+using testing::AllConnected;
 using testing::ByteAtATime;
+using testing::CellThread;
 using testing::FloodWithoutReading;
 using testing::GarbageAndHangUp;
 using testing::HeldOpen;
@@ -59,31 +61,6 @@ std::vector<PickCommand> ExpectedPicks(std::uint32_t sequence) {
   }
   return picks;
 }
-
-/// The cell side: waits for triggers, publishes ExpectedPicks, waits for the acknowledge.
-class CellThread {
- public:
-  explicit CellThread(RobotLink& link)
-      : thread_([this, &link] {
-          while (!stop_) {
-            const Trigger trigger = link.WaitForTrigger(milliseconds(50));
-            if (trigger.kind != TriggerKind::kTrigger) continue;
-            CycleResult cycle;
-            cycle.request_sequence = trigger.request_sequence;
-            cycle.picks = ExpectedPicks(trigger.request_sequence);
-            link.Publish(cycle);
-            link.WaitForAcknowledge(milliseconds(3000));
-          }
-        }) {}
-  ~CellThread() {
-    stop_ = true;
-    thread_.join();
-  }
-
- private:
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
-};
 
 void PlcCycles(modbus_t* plc, int cycles, std::uint16_t first_sequence);
 
@@ -232,15 +209,8 @@ Timings MeasureAloneAndHostile(RobotLink& link, int cycles, AddClients add_clien
   const int port = std::stoi(link.Describe().substr(link.Describe().rfind(':') + 1));
   Timings timings;
   timings.alone_s = RunPlc(port, cycles, 1000);
-  const std::vector<HostileCounters*> started = add_clients(port);
-  // Every kind connected (threads start late on a loaded machine), then a little more.
-  const auto deadline = Clock::now() + std::chrono::seconds(10);
-  for (HostileCounters* counters : started) {
-    while (counters->connections == 0 && Clock::now() < deadline) {
-      std::this_thread::sleep_for(milliseconds(10));
-    }
-    EXPECT_GT(counters->connections, 0) << "a hostile client never connected";
-  }
+  // Every kind connected, then a little more.
+  EXPECT_TRUE(AllConnected(add_clients(port))) << "a hostile client never connected";
   std::this_thread::sleep_for(milliseconds(200));
   timings.hostile_s = RunPlc(port, cycles, 2000);
   return timings;
@@ -257,7 +227,7 @@ void ExpectWithinBound(const Timings& timings, int cycles) {
 TEST(ModbusServerHostileClients, APlcsThirtyCyclesWithinTwiceTheirTimeAlonePlusOneSecond) {
   auto link =
       OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), QuietOptions());
-  CellThread cell(*link);
+  CellThread cell(*link, ExpectedPicks, milliseconds(3000));
   HostileCrowd crowd;
   HostileCounters* counters[10] = {};
   const Timings timings = MeasureAloneAndHostile(*link, 30, [&](int port) {
@@ -323,7 +293,7 @@ TEST_P(ModbusServerHostileKind, PlcUnaffectedAndTheClientRefused) {
   const KindCase& kind = GetParam();
   auto link = OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true),
                        FastTimeoutOptions());
-  CellThread cell(*link);
+  CellThread cell(*link, ExpectedPicks, milliseconds(3000));
   HostileCrowd crowd;
   HostileCounters* counters = nullptr;
   const Timings timings = MeasureAloneAndHostile(*link, 10, [&](int port) {
@@ -391,7 +361,7 @@ int OpenDescriptors() {
 TEST(ModbusServerHostileClients, OutOfDescriptorsTheServerNeitherSpinsNorStopsThePlc) {
   auto link =
       OpenLink("modbus-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), QuietOptions());
-  CellThread cell(*link);
+  CellThread cell(*link, ExpectedPicks, milliseconds(3000));
   const int port = std::stoi(link->Describe().substr(link->Describe().rfind(':') + 1));
   modbus_t* plc = modbus_new_tcp("127.0.0.1", port);
   modbus_set_response_timeout(plc, 10, 0);
