@@ -33,8 +33,7 @@ std::string BareHost(const std::string& host) {
 std::string PeerAddress(const sockaddr_storage& address) {
   char text[INET6_ADDRSTRLEN] = "?";
   if (address.ss_family == AF_INET) {
-    inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in&>(address).sin_addr, text,
-              sizeof text);
+    inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in&>(address).sin_addr, text, sizeof text);
   } else if (address.ss_family == AF_INET6) {
     inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6&>(address).sin6_addr, text,
               sizeof text);
@@ -88,8 +87,8 @@ void TcpServer::Listen(const std::string& host_text, int port) {
   const std::string port_text = std::to_string(port);
   const std::string host = BareHost(host_text);
   if (const int rc = getaddrinfo(host.c_str(), port_text.c_str(), &hints, &found); rc != 0) {
-    throw std::runtime_error(settings_.name + ": cannot resolve '" + host + "': " +
-                             gai_strerror(rc));
+    throw std::runtime_error(settings_.name + ": cannot resolve '" + host +
+                             "': " + gai_strerror(rc));
   }
   std::string last_error = "no address";
   for (addrinfo* address = found; address != nullptr && listen_fd_ < 0;
@@ -113,8 +112,8 @@ void TcpServer::Listen(const std::string& host_text, int port) {
   }
   freeaddrinfo(found);
   if (listen_fd_ < 0) {
-    throw std::runtime_error(settings_.name + ": cannot listen on " + host_text + ":" +
-                             port_text + ": " + last_error);
+    throw std::runtime_error(settings_.name + ": cannot listen on " + host_text + ":" + port_text +
+                             ": " + last_error);
   }
   sockaddr_storage bound{};
   socklen_t length = sizeof bound;
@@ -354,14 +353,12 @@ bool TcpServer::MakeRoom(const std::string& peer) {
     CloseMarked();
     return true;
   };
-  auto own_quietest = [&](const TcpConnection& c) {
-    return c.peer == peer && evictable(c, true);
-  };
+  auto own_quietest = [&](const TcpConnection& c) { return c.peer == peer && evictable(c, true); };
   const ServerLimits& limits = settings_.limits;
   if (own >= limits.max_connections_per_peer) {
-    return evict_quietest(own_quietest, "per-peer limit " +
-                                            std::to_string(limits.max_connections_per_peer) +
-                                            " from " + peer);
+    return evict_quietest(
+        own_quietest,
+        "per-peer limit " + std::to_string(limits.max_connections_per_peer) + " from " + peer);
   }
   if (static_cast<int>(connections_.size()) >= limits.max_connections) {
     const std::string why = "limit " + std::to_string(limits.max_connections);

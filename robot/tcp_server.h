@@ -20,18 +20,18 @@ namespace hnnstereo::robot {
 struct TcpConnection {
   using Clock = std::chrono::steady_clock;
   int fd = -1;
-  int id = 0;                       ///< 1, 2, ... in the order accepted
-  std::string peer;                 ///< peer address (per-peer limit, log)
-  std::string input;                ///< received bytes not yet taken as requests
-  std::string output;               ///< reply bytes the client has not taken yet
+  int id = 0;          ///< 1, 2, ... in the order accepted
+  std::string peer;    ///< peer address (per-peer limit, log)
+  std::string input;   ///< received bytes not yet taken as requests
+  std::string output;  ///< reply bytes the client has not taken yet
   Clock::time_point accepted;
-  Clock::time_point request_started;  ///< when the incomplete request in `input` began
-  Clock::time_point output_since;     ///< when `output` last became non-empty or shrank
+  Clock::time_point request_started;            ///< when the incomplete request in `input` began
+  Clock::time_point output_since;               ///< when `output` last became non-empty or shrank
   std::optional<Clock::time_point> last_valid;  ///< the last valid request (protocol's verdict)
-  double tokens = 0.0;              ///< request budget (token bucket, ServerLimits)
-  Clock::time_point tokens_at;      ///< when `tokens` was last refilled
-  std::string close_reason;         ///< non-empty: closed at the next CloseMarked
-  bool log_close = true;            ///< false: an ordinary hang-up, not logged
+  double tokens = 0.0;                          ///< request budget (token bucket, ServerLimits)
+  Clock::time_point tokens_at;                  ///< when `tokens` was last refilled
+  std::string close_reason;                     ///< non-empty: closed at the next CloseMarked
+  bool log_close = true;                        ///< false: an ordinary hang-up, not logged
 
   /// Marks the connection for closing (the first reason counts).
   void MarkForClose(std::string reason, bool log = true);

@@ -92,7 +92,8 @@ struct Server {
   /// Connections the server took or refused so far.
   int Taken() const {
     int refused = 0;
-    for (const std::string& line : protocol.log) refused += line.find(" refused: ") != std::string::npos;
+    for (const std::string& line : protocol.log)
+      refused += line.find(" refused: ") != std::string::npos;
     return protocol.accepted + refused;
   }
   /// Connects from `source` and runs rounds until the server has taken or refused it.
@@ -107,7 +108,9 @@ struct Server {
   bool Served(int fd) {
     if (!SendBytes(fd, "OK\n")) return false;
     std::string reply;
-    auto answered = [&] { return reply.size() >= 3 && reply.compare(reply.size() - 3, 3, "ok\n") == 0; };
+    auto answered = [&] {
+      return reply.size() >= 3 && reply.compare(reply.size() - 3, 3, "ok\n") == 0;
+    };
     PumpUntil([&] {
       char buffer[256];
       const ssize_t n = recv(fd, buffer, sizeof buffer, MSG_DONTWAIT);
@@ -149,10 +152,10 @@ TEST(TcpServer, BindsPortZeroToAFreePortAndRefusesOneInUse) {
   Server first(ServerLimits{});
   EXPECT_GT(first.server.port(), 0);
   LineProtocol protocol;
-  EXPECT_THROW(TcpServer("127.0.0.1", first.server.port(),
-                         TcpServerSettings{"test-server", "", 1024, milliseconds(100), {}},
-                         protocol),
-               std::runtime_error);
+  EXPECT_THROW(
+      TcpServer("127.0.0.1", first.server.port(),
+                TcpServerSettings{"test-server", "", 1024, milliseconds(100), {}}, protocol),
+      std::runtime_error);
 }
 
 TEST(TcpServer, AtThePerPeerLimitThePeersQuietestConnectionGivesWay) {
@@ -309,8 +312,7 @@ TEST(TcpServer, AtMostKAcceptsPerRoundTakesEveryoneInTurn) {
   s.server.Wait(Clock::now() + std::chrono::seconds(2));
   s.server.EndRound();
   EXPECT_EQ(s.protocol.accepted, TcpServer::kAcceptsPerRound);
-  ASSERT_TRUE(s.PumpUntil(
-      [&] { return s.protocol.accepted == static_cast<int>(clients.size()); }));
+  ASSERT_TRUE(s.PumpUntil([&] { return s.protocol.accepted == static_cast<int>(clients.size()); }));
   for (const int fd : clients) close(fd);
 }
 
