@@ -48,8 +48,8 @@ enum LinkErrorCode : int {
 
 /// Limits of the listening transports (modbus-server, vision-server): whatever one client
 /// sends, or does not send, no other client and no cycle waits for it. Each connection has its
-/// own buffers and timers; the server never blocks on one socket. The defaults fit one PLC or
-/// robot plus a few HMIs and monitors (docs/robot.md, "Hostile clients").
+/// own buffers and timers; the server never blocks on one socket (TcpServer, tcp_server.h). The
+/// defaults fit one PLC or robot plus a few HMIs and monitors (docs/robot.md, "Hostile clients").
 struct ServerLimits {
   /// Client connections open at once. At the limit a new connection takes the place of the
   /// quietest connection of a peer holding more connections than its own (never made a valid

@@ -1,26 +1,18 @@
 // Modbus TCP transports of the robot link (issue 5; docs/robot_modbus.md), on libmodbus 3.1.6.
 //
 // modbus-server://HOST:PORT[?unit=N&connection=persistent|per-request]  the vision side is a Modbus TCP server the PLC polls.
-//   A background thread serves every connected client: one poll() over the listening socket
-//   and all clients, non-blocking reads into a buffer per connection, MBAP frames cut and
-//   answered here (not by libmodbus's modbus_receive/modbus_reply, which block on one socket
-//   until its frame is complete, and sleep before answering an unknown function code - one
-//   slow or hostile client then stalled every other, issue 15). Limits per connection and in
-//   all: LinkOptions::server (ServerLimits, robot/link.h). The register mapping is guarded by
-//   one mutex. Writes to the command register become events in a queue, so a fast PLC that
-//   writes "acknowledge" and then "trigger" loses neither.
+//   A background thread drives the TCP server core (robot/tcp_server.h: one poll() over the
+//   listening socket and all clients, non-blocking reads, the limits of LinkOptions::server);
+//   MBAP frames are cut and answered here (not by libmodbus's modbus_receive/modbus_reply,
+//   which block on one socket until its frame is complete, and sleep before answering an
+//   unknown function code - one slow or hostile client then stalled every other, issue 15).
+//   The register mapping is guarded by one mutex. Writes to the command register become events
+//   in a queue, so a fast PLC that writes "acknowledge" and then "trigger" loses neither.
 // modbus-client://HOST:PORT[?unit=N&poll_ms=M]  the vision side writes into the controller's
 //   registers (same map, roles swapped), polling the controller's command register.
 //
 // The register map and the word codec: robot/modbus_registers.h.
-#include <arpa/inet.h>
-#include <fcntl.h>
 #include <modbus/modbus.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,7 +22,6 @@
 #include <condition_variable>
 #include <cstring>
 #include <deque>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -42,6 +33,7 @@
 #include "robot/link.h"
 #include "robot/modbus_frames.h"
 #include "robot/modbus_registers.h"
+#include "robot/tcp_server.h"
 
 namespace hnnstereo::robot {
 namespace {
@@ -123,16 +115,20 @@ struct CommandEvent {
 // modbus-server
 // ------------------------------------------------------------------------------------------
 
-class ModbusServerLink final : public RobotLink {
+class ModbusServerLink final : public RobotLink, private TcpServerProtocol {
  public:
   ModbusServerLink(const LinkUri& uri, SafetyGate gate, LinkOptions options)
       : RobotLink(std::move(gate), std::move(options)),
         host_(uri.host),
         query_(ParseModbusQuery(uri, false)),
         register_count_(mb::RegisterCount(this->options().max_poses)) {
-    OpenListeningSocket(uri);
+    server_ = std::make_unique<TcpServer>(
+        uri.host, uri.port,
+        TcpServerSettings{"modbus-server", "modbus-server: ", kReadAheadBytes,
+                          this->options().io_timeout, this->options().server},
+        static_cast<TcpServerProtocol&>(*this));
     if (pipe(wake_pipe_) != 0) {
-      close(listen_fd_);
+      server_.reset();
       throw std::runtime_error("modbus-server: pipe: " + std::string(std::strerror(errno)));
     }
     mapping_ = modbus_mapping_new(0, 0, register_count_, 0);
@@ -154,7 +150,7 @@ class ModbusServerLink final : public RobotLink {
   }
 
   std::string Describe() const override {
-    return "modbus-server://" + host_ + ":" + std::to_string(port_);
+    return "modbus-server://" + host_ + ":" + std::to_string(server_->port());
   }
 
   Trigger WaitForTrigger(milliseconds timeout) override {
@@ -272,75 +268,8 @@ class ModbusServerLink final : public RobotLink {
   }
 
  private:
-  /// One client connection. Each has its own buffers and timers and the server thread never
-  /// blocks on its socket, so nothing one client sends, or fails to send, holds up another
-  /// (issue 15: a half-sent frame used to stall every client for the byte timeout).
-  struct Connection {
-    int fd = -1;
-    int id = 0;
-    std::string peer;                  ///< peer address, for the per-peer limit and the log
-    std::vector<std::uint8_t> input;   ///< received bytes, not yet a whole frame
-    std::string output;                ///< reply bytes the client has not taken yet
-    Clock::time_point accepted;
-    Clock::time_point frame_started;   ///< when the first byte now in `input` arrived
-    std::optional<Clock::time_point> last_valid;  ///< last request answered without exception
-    double tokens = 0.0;               ///< request budget (token bucket, ServerLimits)
-    Clock::time_point tokens_at;       ///< when `tokens` was last refilled
-    Clock::time_point output_since;    ///< when `output` last became non-empty or shrank
-    std::string close_reason;          ///< non-empty: close at the end of this round
-    bool log_close = true;             ///< false for an ordinary hang-up
-  };
-
-  void OpenListeningSocket(const LinkUri& uri) {
-    addrinfo hints{};
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
-    hints.ai_flags = AI_PASSIVE;
-    addrinfo* found = nullptr;
-    const std::string port_text = std::to_string(uri.port);
-    const std::string host = BareHost(uri.host);
-    if (const int rc = getaddrinfo(host.c_str(), port_text.c_str(), &hints, &found); rc != 0) {
-      throw std::runtime_error("modbus-server: cannot resolve '" + host + "': " +
-                               gai_strerror(rc));
-    }
-    std::string last_error = "no address";
-    for (addrinfo* address = found; address != nullptr; address = address->ai_next) {
-      const int fd = socket(address->ai_family, address->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK,
-                            address->ai_protocol);
-      if (fd < 0) {
-        last_error = std::strerror(errno);
-        continue;
-      }
-      const int yes = 1;
-      setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-      // A deep backlog: when clients connect and hang up by the thousand, a full accept queue
-      // drops the PLC's SYN and its connect waits for the retransmission (1 s, then 3 s).
-      if (bind(fd, address->ai_addr, address->ai_addrlen) != 0 || listen(fd, SOMAXCONN) != 0) {
-        last_error = std::strerror(errno);
-        close(fd);
-        continue;
-      }
-      listen_fd_ = fd;
-      break;
-    }
-    freeaddrinfo(found);
-    if (listen_fd_ < 0) {
-      throw std::runtime_error("modbus-server: cannot listen on " + uri.host + ":" + port_text +
-                               ": " + last_error);
-    }
-    sockaddr_storage bound{};
-    socklen_t length = sizeof(bound);
-    getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&bound), &length);
-    port_ = bound.ss_family == AF_INET6
-                ? ntohs(reinterpret_cast<sockaddr_in6*>(&bound)->sin6_port)
-                : ntohs(reinterpret_cast<sockaddr_in*>(&bound)->sin_port);
-  }
-
   void CloseAll() {
-    for (const Connection& connection : connections_) close(connection.fd);
-    connections_.clear();
-    if (listen_fd_ >= 0) close(listen_fd_);
-    listen_fd_ = -1;
+    server_.reset();
     for (int& fd : wake_pipe_) {
       if (fd >= 0) close(fd);
       fd = -1;
@@ -349,41 +278,13 @@ class ModbusServerLink final : public RobotLink {
     mapping_ = nullptr;
   }
 
-  const ServerLimits& limits() const { return options().server; }
-
   // The server thread: accepts clients, reads their bytes without blocking, answers whole
-  // frames, enforces the limits, counts the heartbeat. One poll() per round over every socket.
+  // frames, enforces the limits (TcpServer), counts the heartbeat. One poll() per round.
   void Serve() {
     const milliseconds period = options().heartbeat_period;
     auto next_heartbeat = Clock::now() + period;
-    std::vector<pollfd> fds;
     while (!stopping_) {
-      fds.clear();
-      const bool accepting = Clock::now() >= accept_paused_until_;
-      fds.push_back({listen_fd_, static_cast<short>(accepting ? POLLIN : 0), 0});
-      fds.push_back({wake_pipe_[0], POLLIN, 0});
-      auto wake = accepting ? next_heartbeat : std::min(next_heartbeat, accept_paused_until_);
-      for (const Connection& connection : connections_) {
-        short events = 0;
-        // Back-pressure: a client with unanswered frames buffered or replies piling up is not
-        // read from until they are gone; TCP flow control then slows it down, nobody else.
-        if (connection.input.size() < kReadAheadBytes &&
-            connection.output.size() < kReadAheadBytes) {
-          events |= POLLIN;
-        }
-        if (!connection.output.empty()) events |= POLLOUT;
-        fds.push_back({connection.fd, events, 0});
-        wake = std::min(wake, NextDeadline(connection));
-      }
-      const auto wait = std::chrono::duration_cast<milliseconds>(wake - Clock::now()).count();
-      const int ready = poll(fds.data(), fds.size(),
-                             static_cast<int>(std::clamp<long long>(wait + 1, 0, 1000)));
-      if (ready < 0 && errno != EINTR) {
-        std::lock_guard lock(mutex_);
-        DeferLogLocked("modbus-server: poll failed: " + std::string(std::strerror(errno)));
-        std::this_thread::sleep_for(milliseconds(10));
-        continue;
-      }
+      const bool woken = server_->Wait(next_heartbeat, wake_pipe_[0]);
       if (Clock::now() >= next_heartbeat) {
         std::lock_guard lock(mutex_);
         // Wraps 65535 -> 0 by unsigned arithmetic.
@@ -392,258 +293,71 @@ class ModbusServerLink final : public RobotLink {
         if (next_heartbeat < Clock::now()) next_heartbeat = Clock::now() + period;
       }
       if (stopping_) break;
-      if (ready > 0) {
-        if (fds[1].revents & POLLIN) {
-          char drain[64];
-          if (read(wake_pipe_[0], drain, sizeof drain) < 0) {
-            // Nothing to do: the pipe only wakes this loop.
-          }
-        }
-        for (std::size_t i = 0; i < connections_.size(); ++i) {
-          const short revents = fds[i + 2].revents;
-          if (revents & POLLOUT) Flush(connections_[i]);
-          if (revents & (POLLIN | POLLHUP | POLLERR)) Receive(connections_[i]);
+      if (woken) {
+        char drain[64];
+        if (read(wake_pipe_[0], drain, sizeof drain) < 0) {
+          // Nothing to do: the pipe only wakes this loop.
         }
       }
       // A few frames per connection per round: a client that floods requests waits its turn
       // behind everyone else instead of owning the loop.
-      for (Connection& connection : connections_) ProcessFrames(connection);
-      for (Connection& connection : connections_) {
-        if (!connection.output.empty()) Flush(connection);
+      for (TcpConnection& connection : server_->connections()) ProcessFrames(connection);
+      for (TcpConnection& connection : server_->connections()) {
+        if (!connection.output.empty()) server_->Flush(connection);
       }
-      ExpireTimeouts(Clock::now());
-      CloseMarked();
-      // After the reads, so a PLC's old connection closing and its new one arriving in the same
-      // round are seen in that order (the reconnect rule needs the old one gone).
-      if (ready > 0 && (fds[0].revents & POLLIN)) AcceptPending();
+      server_->EndRound();
     }
   }
 
-  /// When the server must look at this connection again even if it sends nothing.
-  Clock::time_point NextDeadline(const Connection& connection) const {
-    if (HasWholeFrame(connection)) return TokenAvailable(connection);
-    auto deadline = Clock::time_point::max();
-    if (!connection.input.empty()) {
-      deadline = std::min(deadline, connection.frame_started + options().io_timeout);
-    }
-    if (!connection.last_valid) {
-      deadline = std::min(deadline, connection.accepted + limits().first_request_timeout);
-    }
-    if (!connection.output.empty()) {
-      deadline = std::min(deadline, connection.output_since + options().io_timeout);
-    }
-    return deadline;
-  }
-
-  static bool HasWholeFrame(const Connection& connection) {
+  // TcpServerProtocol: a request is one MBAP frame (header + the length it announces).
+  bool HasWholeRequest(const TcpConnection& connection) const override {
     if (connection.input.size() < mb::kMbapHeaderBytes) return false;
-    return connection.input.size() >= 6u + Word(connection.input.data() + 4);
+    const auto* bytes = reinterpret_cast<const std::uint8_t*>(connection.input.data());
+    return connection.input.size() >= 6u + Word(bytes + 4);
   }
-
-  /// Marks `connection` for closing at the end of the round (the first reason counts).
-  static void Mark(Connection& connection, std::string reason, bool log = true) {
-    if (!connection.close_reason.empty()) return;
-    connection.close_reason = std::move(reason);
-    connection.log_close = log;
+  void OnRequestIncomplete(TcpConnection& connection) override {
+    connection.MarkForClose("request incomplete after " +
+                            std::to_string(options().io_timeout.count()) + " ms");
   }
-
-  void Receive(Connection& connection) {
-    if (!connection.close_reason.empty() || connection.input.size() >= kReadAheadBytes) return;
-    std::uint8_t buffer[kReadAheadBytes];
-    const ssize_t n = recv(connection.fd, buffer, kReadAheadBytes - connection.input.size(),
-                           MSG_DONTWAIT);
-    if (n > 0) {
-      if (connection.input.empty()) connection.frame_started = Clock::now();
-      connection.input.insert(connection.input.end(), buffer, buffer + n);
-    } else if (n == 0) {
-      Mark(connection, "closed by the client", false);
-    } else if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
-      Mark(connection, std::strerror(errno), errno != ECONNRESET);
-    }
+  bool LogsLoss(const TcpConnection&, int error) const override {
+    return error != 0 && error != ECONNRESET && error != EPIPE;
   }
-
-  void Flush(Connection& connection) {
-    while (!connection.output.empty() && connection.close_reason.empty()) {
-      const ssize_t n = send(connection.fd, connection.output.data(), connection.output.size(),
-                             MSG_NOSIGNAL | MSG_DONTWAIT);
-      if (n > 0) {
-        connection.output.erase(0, static_cast<std::size_t>(n));
-        connection.output_since = Clock::now();  // progress: the client reads
-      } else if (n < 0 && errno == EINTR) {
-        continue;
-      } else {
-        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
-          Mark(connection, std::strerror(errno), errno != EPIPE && errno != ECONNRESET);
-        }
-        return;
-      }
-    }
-  }
-
-  void ProcessFrames(Connection& connection) {
-    for (int n = 0; n < kFramesPerRound && connection.close_reason.empty(); ++n) {
-      // A malformed header (mb::CutMbapFrame): not a Modbus TCP peer, or a stream that lost its
-      // frame boundary and cannot regain it - drop the connection rather than wait for 65535 bytes.
-      const mb::MbapCut cut = mb::CutMbapFrame(connection.input.data(), connection.input.size());
-      if (cut.kind == mb::MbapCut::Kind::kMalformed) {
-        Mark(connection, cut.problem);
-        return;
-      }
-      if (cut.kind == mb::MbapCut::Kind::kIncomplete) return;
-      const std::size_t frame_bytes = cut.frame_bytes;
-      // Over its request rate: the frame waits in the buffer (NextDeadline wakes the loop when
-      // a token is due) and, the buffer being full, nothing more is read from this client.
-      if (!TakeToken(connection)) return;
-      Answer(connection, connection.input.data(), frame_bytes);
-      connection.input.erase(connection.input.begin(),
-                             connection.input.begin() + static_cast<std::ptrdiff_t>(frame_bytes));
-      if (!connection.input.empty()) connection.frame_started = Clock::now();
-    }
-  }
-
-  void ExpireTimeouts(Clock::time_point now) {
-    for (Connection& connection : connections_) {
-      // A whole frame waiting for its turn (request rate) is not an incomplete one.
-      if (!connection.input.empty() && !HasWholeFrame(connection) &&
-          now - connection.frame_started > options().io_timeout) {
-        Mark(connection, "request incomplete after " +
-                             std::to_string(options().io_timeout.count()) + " ms");
-      } else if (!connection.output.empty() &&
-                 now - connection.output_since > options().io_timeout) {
-        Mark(connection, "replies not read for " + std::to_string(options().io_timeout.count()) +
-                             " ms");
-      } else if (!connection.last_valid &&
-                 now - connection.accepted > limits().first_request_timeout) {
-        Mark(connection, "no valid request within " +
-                             std::to_string(limits().first_request_timeout.count()) +
-                             " ms of connecting");
-      }
-    }
-  }
-
-  void CloseMarked() {
-    for (std::size_t i = 0; i < connections_.size();) {
-      if (connections_[i].close_reason.empty()) {
-        ++i;
-      } else {
-        CloseConnection(i);
-      }
-    }
-  }
-
-  void CloseConnection(std::size_t index) {
-    const Connection connection = std::move(connections_[index]);
-    connections_.erase(connections_.begin() + static_cast<std::ptrdiff_t>(index));
-    close(connection.fd);
+  void OnAccepted(TcpConnection& connection) override { Accepted(connection.id); }
+  void OnClosed(const TcpConnection& connection) override {
     std::lock_guard lock(mutex_);
-    if (connection.log_close) {
-      DeferLogLocked("modbus-server: connection " + std::to_string(connection.id) + " from " +
-                     connection.peer + " closed: " + connection.close_reason);
-    }
     live_connections_.erase(connection.id);
     if (connection.id == trigger_owner_) owner_lost_ = true;
     changed_.notify_all();
   }
-
-  static std::string PeerAddress(const sockaddr_storage& address) {
-    char text[INET6_ADDRSTRLEN] = "?";
-    if (address.ss_family == AF_INET) {
-      inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in&>(address).sin_addr, text,
-                sizeof text);
-    } else if (address.ss_family == AF_INET6) {
-      inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6&>(address).sin6_addr, text,
-                sizeof text);
+  // The log callback is called on the caller's thread only (it need not be thread-safe): lines
+  // from the server thread wait here, at most kMaxDeferredLogs, until the next
+  // WaitForTrigger/WaitForAcknowledge.
+  void WriteLog(const std::string& line) override {
+    std::lock_guard lock(log_mutex_);
+    if (deferred_logs_.size() < kMaxDeferredLogs) {
+      deferred_logs_.push_back(line);
+    } else {
+      ++suppressed_logs_;
     }
-    return text;
   }
 
-  /// Frees a slot for a new connection from `peer` when a limit is reached. False: no room,
-  /// the new connection is refused. The rules (ServerLimits): at the per-peer limit, the peer's
-  /// own quietest connection gives way if it is evictable; at the overall limit, the quietest
-  /// evictable connection of a peer holding at least two more connections than `peer` gives
-  /// way (so floods from a few addresses cannot lock out another host), else the peer's own.
-  bool MakeRoom(const std::string& peer) {
-    const auto now = Clock::now();
-    std::map<std::string, int> per_peer;
-    for (const Connection& c : connections_) ++per_peer[c.peer];
-    const int own = per_peer[peer];
-    // Quietest first: never valid (oldest accepted first), then the oldest last valid request.
-    auto quiet_since = [](const Connection& c) {
-      return c.last_valid ? *c.last_valid : c.accepted - std::chrono::hours(24 * 365);
-    };
-    // An active client (a valid request within kEvictAfterQuiet) never gives way. A brand-new
-    // one gives way to its own peer's newer connections only after kEvictionGrace, so that a
-    // burst of connections accepted in one round cannot push out one whose first request is
-    // already on its way.
-    auto evictable = [&](const Connection& c, bool same_peer) {
-      if (c.last_valid) return now - *c.last_valid >= kEvictAfterQuiet;
-      return !same_peer || now - c.accepted >= kEvictionGrace;
-    };
-    auto evict_quietest = [&](auto&& eligible, const std::string& why) {
-      std::optional<std::size_t> victim;
-      for (std::size_t i = 0; i < connections_.size(); ++i) {
-        if (!eligible(connections_[i])) continue;
-        if (!victim || quiet_since(connections_[i]) < quiet_since(connections_[*victim])) {
-          victim = i;
-        }
+  void ProcessFrames(TcpConnection& connection) {
+    for (int n = 0; n < kFramesPerRound && !connection.closing(); ++n) {
+      // A malformed header (mb::CutMbapFrame): not a Modbus TCP peer, or a stream that lost its
+      // frame boundary and cannot regain it - drop the connection rather than wait for 65535 bytes.
+      const auto* bytes = reinterpret_cast<const std::uint8_t*>(connection.input.data());
+      const mb::MbapCut cut = mb::CutMbapFrame(bytes, connection.input.size());
+      if (cut.kind == mb::MbapCut::Kind::kMalformed) {
+        connection.MarkForClose(cut.problem);
+        return;
       }
-      if (!victim) return false;
-      Mark(connections_[*victim], "closed to make room for a new connection (" + why + ")");
-      CloseConnection(*victim);
-      return true;
-    };
-    auto own_quietest = [&](const Connection& c) {
-      return c.peer == peer && evictable(c, true);
-    };
-    if (own >= limits().max_connections_per_peer) {
-      return evict_quietest(own_quietest, "per-peer limit " +
-                                              std::to_string(limits().max_connections_per_peer) +
-                                              " from " + peer);
-    }
-    if (static_cast<int>(connections_.size()) >= limits().max_connections) {
-      const std::string why = "limit " + std::to_string(limits().max_connections);
-      auto heavier = [&](const Connection& c) {
-        return per_peer[c.peer] >= own + 2 && evictable(c, false);
-      };
-      return evict_quietest(heavier, why) || evict_quietest(own_quietest, why);
-    }
-    return true;
-  }
-
-  void AcceptPending() {
-    for (int n = 0; n < kAcceptsPerRound; ++n) {
-      sockaddr_storage address{};
-      socklen_t length = sizeof address;
-      const int fd = accept4(listen_fd_, reinterpret_cast<sockaddr*>(&address), &length,
-                             SOCK_CLOEXEC | SOCK_NONBLOCK);
-      if (fd < 0) {
-        if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM) {
-          accept_paused_until_ = Clock::now() + kAcceptBackoff;
-          std::lock_guard lock(mutex_);
-          DeferLogLocked("modbus-server: cannot accept a connection: " +
-                         std::string(std::strerror(errno)));
-        }
-        return;  // none left (the listening socket is non-blocking), or no descriptors
-      }
-      Connection connection;
-      connection.fd = fd;
-      connection.peer = PeerAddress(address);
-      if (!MakeRoom(connection.peer)) {
-        close(fd);
-        std::lock_guard lock(mutex_);
-        DeferLogLocked("modbus-server: connection from " + connection.peer +
-                       " refused: every slot is held by an active client");
-        continue;
-      }
-      const int yes = 1;
-      setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &yes, sizeof(yes));
-      connection.id = ++last_connection_id_;
-      connection.accepted = Clock::now();
-      connection.tokens = limits().request_burst;
-      connection.tokens_at = connection.accepted;
-      const int id = connection.id;
-      connections_.push_back(std::move(connection));
-      Accepted(id);
+      if (cut.kind == mb::MbapCut::Kind::kIncomplete) return;
+      // Over its request rate: the frame waits in the buffer (the server wakes when a token is
+      // due) and, the buffer being full, nothing more is read from this client.
+      if (!server_->TakeToken(connection)) return;
+      Answer(connection, bytes, cut.frame_bytes);
+      connection.input.erase(0, cut.frame_bytes);
+      if (!connection.input.empty()) connection.request_started = Clock::now();
     }
   }
 
@@ -668,29 +382,9 @@ class ModbusServerLink final : public RobotLink {
     changed_.notify_all();
   }
 
-  /// One request token (token bucket: max_requests_per_second, up to request_burst saved).
-  bool TakeToken(Connection& connection) {
-    const auto now = Clock::now();
-    const double elapsed = std::chrono::duration<double>(now - connection.tokens_at).count();
-    connection.tokens_at = now;
-    connection.tokens = std::min<double>(
-        limits().request_burst, connection.tokens + elapsed * limits().max_requests_per_second);
-    if (connection.tokens < 1.0) return false;
-    connection.tokens -= 1.0;
-    return true;
-  }
-
-  /// When the connection will have a request token again.
-  Clock::time_point TokenAvailable(const Connection& connection) const {
-    if (connection.tokens >= 1.0) return Clock::now();
-    const double wait_s = (1.0 - connection.tokens) / limits().max_requests_per_second;
-    return connection.tokens_at + std::chrono::duration_cast<Clock::duration>(
-                                      std::chrono::duration<double>(wait_s));
-  }
-
   /// Answers one whole frame (MBAP header + PDU) into the connection's output
   /// (mb::HandleModbusFrame, robot/modbus_frames.h).
-  void Answer(Connection& connection, const std::uint8_t* frame, std::size_t frame_bytes) {
+  void Answer(TcpConnection& connection, const std::uint8_t* frame, std::size_t frame_bytes) {
     mb::ModbusAnswer answer;
     {
       std::lock_guard lock(mutex_);
@@ -720,29 +414,20 @@ class ModbusServerLink final : public RobotLink {
         {command, mapping_->tab_registers[mb::kRequestSequenceRegister], connection});
     changed_.notify_all();
   }
-  // The log callback is called on the caller's thread only (it need not be thread-safe): lines
-  // from the server thread wait here until the next WaitForTrigger/WaitForAcknowledge.
-  // Bounded, in memory and in rate: a storm of hostile connections must neither grow memory
-  // nor flood the cell's log (at most kMaxLogLinesPerSecond lines, the rest counted).
-  void DeferLogLocked(std::string line) {
-    const auto now = Clock::now();
-    if (now - log_window_start_ >= std::chrono::seconds(1)) {
-      log_window_start_ = now;
-      log_window_lines_ = 0;
-    }
-    if (deferred_logs_.size() < kMaxDeferredLogs && log_window_lines_ < kMaxLogLinesPerSecond) {
-      ++log_window_lines_;
-      deferred_logs_.push_back(std::move(line));
-    } else {
-      ++suppressed_logs_;
-    }
-  }
+  /// A line from the server thread about clients: rate-limited (TcpServer::LogLimited), then
+  /// deferred (WriteLog). Server thread only.
+  void DeferLogLocked(const std::string& line) { server_->LogLimited(line); }
   void FlushLogsLocked() {
-    for (const std::string& line : deferred_logs_) Log(line);
-    deferred_logs_.clear();
-    if (suppressed_logs_ > 0) {
-      Log("modbus-server: " + std::to_string(suppressed_logs_) + " more log lines suppressed");
-      suppressed_logs_ = 0;
+    std::vector<std::string> lines;
+    std::size_t suppressed = 0;
+    {
+      std::lock_guard lock(log_mutex_);
+      lines.swap(deferred_logs_);
+      std::swap(suppressed, suppressed_logs_);
+    }
+    for (const std::string& line : lines) Log(line);
+    if (suppressed > 0) {
+      Log("modbus-server: " + std::to_string(suppressed) + " more log lines suppressed");
     }
   }
 
@@ -799,39 +484,25 @@ class ModbusServerLink final : public RobotLink {
   static constexpr std::size_t kMaxQueuedCommands = 64;
   /// Bytes read ahead per connection: two of the largest frames (260 bytes each).
   static constexpr std::size_t kReadAheadBytes = 2 * MODBUS_TCP_MAX_ADU_LENGTH;
-  static constexpr int kFramesPerRound = 4;    ///< per connection, per poll round
-  static constexpr int kAcceptsPerRound = 16;  ///< new connections taken per poll round
-  /// A connection at a limit gives way to a new one only after this long without a valid
-  /// request (ServerLimits::max_connections).
-  static constexpr milliseconds kEvictAfterQuiet{1000};
-  /// A new connection is safe from its own peer's newer connections for this long.
-  static constexpr milliseconds kEvictionGrace{200};
+  static constexpr int kFramesPerRound = 4;  ///< per connection, per poll round
   static constexpr std::size_t kMaxDeferredLogs = 200;
-  static constexpr int kMaxLogLinesPerSecond = 20;
-  /// After accept fails for want of descriptors (EMFILE, ENFILE), the listening socket is not
-  /// watched for this long: the pending connection stays readable, and poll() would spin.
-  static constexpr milliseconds kAcceptBackoff{100};
 
   std::string host_;
   ModbusUriOptions query_;
   int register_count_ = 0;
-  int port_ = 0;
-  int listen_fd_ = -1;
+  std::unique_ptr<TcpServer> server_;  // server thread only, once started
   int wake_pipe_[2] = {-1, -1};
-  std::vector<Connection> connections_;  // server thread only
-  int last_connection_id_ = 0;           // server thread only
-  Clock::time_point accept_paused_until_{};  // server thread only
   std::atomic<bool> stopping_{false};
   std::thread thread_;
+
+  std::mutex log_mutex_;  // guards the two below; taken after mutex_ where both are held
+  std::vector<std::string> deferred_logs_;
+  std::size_t suppressed_logs_ = 0;
 
   mutable std::mutex mutex_;  // guards everything below and the mapping's registers
   std::condition_variable changed_;
   modbus_mapping_t* mapping_ = nullptr;
   std::deque<CommandEvent> events_;
-  std::vector<std::string> deferred_logs_;
-  std::size_t suppressed_logs_ = 0;
-  Clock::time_point log_window_start_{};
-  int log_window_lines_ = 0;
   std::set<int> live_connections_;
   int trigger_owner_ = -1;    ///< connection that sent the trigger being served
   bool owner_lost_ = false;   ///< ... and has disconnected since

@@ -20,6 +20,8 @@
 #include <thread>
 #include <vector>
 
+#include "robot/link.h"
+
 namespace hnnstereo::robot::testing {
 
 /// A blocking TCP socket to 127.0.0.1:port with send/receive timeouts; -1 when refused.
@@ -140,6 +142,49 @@ class HostileCrowd {
   std::vector<std::unique_ptr<HostileCounters>> counters_;
   std::vector<std::thread> threads_;
 };
+
+/// The cell side, in its own thread as in `hnnstereo serve`: waits for triggers, publishes
+/// `picks(request_sequence)`, waits up to `ack_timeout` for the acknowledge.
+class CellThread {
+ public:
+  CellThread(RobotLink& link, std::function<std::vector<PickCommand>(std::uint32_t)> picks,
+             std::chrono::milliseconds ack_timeout)
+      : thread_([this, &link, picks = std::move(picks), ack_timeout] {
+          while (!stop_) {
+            const Trigger trigger = link.WaitForTrigger(std::chrono::milliseconds(50));
+            if (trigger.kind != TriggerKind::kTrigger) continue;
+            CycleResult cycle;
+            cycle.request_sequence = trigger.request_sequence;
+            cycle.picks = picks(trigger.request_sequence);
+            link.Publish(cycle);
+            link.WaitForAcknowledge(ack_timeout);
+          }
+        }) {}
+  ~CellThread() {
+    stop_ = true;
+    thread_.join();
+  }
+  CellThread(const CellThread&) = delete;
+  CellThread& operator=(const CellThread&) = delete;
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// Waits (at most 10 s, threads start late on a loaded machine) until every kind in `started`
+/// has connected once; a kind that never did fails the test.
+inline bool AllConnected(const std::vector<HostileCounters*>& started) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  bool all = true;
+  for (HostileCounters* counters : started) {
+    while (counters->connections == 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    all = all && counters->connections > 0;
+  }
+  return all;
+}
 
 // ---- behaviours common to both servers --------------------------------------------------
 

@@ -22,7 +22,9 @@ namespace {
 
 using std::chrono::milliseconds;
 using Clock = std::chrono::steady_clock;
+using testing::AllConnected;
 using testing::ByteAtATime;
+using testing::CellThread;
 using testing::ConnectTcp;
 using testing::FloodWithoutReading;
 using testing::GarbageAndHangUp;
@@ -38,30 +40,7 @@ PickCommand ExpectedPick(std::uint32_t sequence) {
                   Eigen::Isometry3d::Identity(), {}, sequence, 0.0);
 }
 
-/// The cell side, in its own thread as in `hnnstereo serve`.
-class CellThread {
- public:
-  explicit CellThread(RobotLink& link)
-      : thread_([this, &link] {
-          while (!stop_) {
-            const Trigger trigger = link.WaitForTrigger(milliseconds(50));
-            if (trigger.kind != TriggerKind::kTrigger) continue;
-            CycleResult cycle;
-            cycle.request_sequence = trigger.request_sequence;
-            cycle.picks = {ExpectedPick(trigger.request_sequence)};
-            link.Publish(cycle);
-            link.WaitForAcknowledge(milliseconds(1000));
-          }
-        }) {}
-  ~CellThread() {
-    stop_ = true;
-    thread_.join();
-  }
-
- private:
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
-};
+std::vector<PickCommand> CellPicks(std::uint32_t sequence) { return {ExpectedPick(sequence)}; }
 
 /// One line from `fd` (without '\n'); empty on timeout or EOF.
 std::string ReadLine(int fd) {
@@ -137,14 +116,7 @@ testing::Behaviour SendAndRead(std::string request) {
 template <typename AddClients>
 void MeasureAndCheck(RobotLink& link, int cycles, AddClients add_clients) {
   const double alone = RunRobot(PortOf(link), cycles);
-  const std::vector<HostileCounters*> started = add_clients(PortOf(link));
-  const auto deadline = Clock::now() + std::chrono::seconds(10);
-  for (HostileCounters* counters : started) {
-    while (counters->connections == 0 && Clock::now() < deadline) {
-      std::this_thread::sleep_for(milliseconds(10));
-    }
-    EXPECT_GT(counters->connections, 0) << "a hostile client never connected";
-  }
+  EXPECT_TRUE(AllConnected(add_clients(PortOf(link)))) << "a hostile client never connected";
   std::this_thread::sleep_for(milliseconds(200));
   const double hostile = RunRobot(PortOf(link), cycles);
   std::printf("[ figures  ] robot %d TRIG cycles: alone %.3f s, with hostile clients %.3f s\n",
@@ -154,7 +126,7 @@ void MeasureAndCheck(RobotLink& link, int cycles, AddClients add_clients) {
 
 TEST(VisionServerHostileClients, ARobotsThirtyCyclesWithinTwiceTheirTimeAlonePlusOneSecond) {
   auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), Options());
-  CellThread cell(*link);
+  CellThread cell(*link, CellPicks, milliseconds(1000));
   HostileCrowd crowd;
   HostileCounters* counters[6] = {};
   MeasureAndCheck(*link, 30, [&](int port) {
@@ -171,46 +143,12 @@ TEST(VisionServerHostileClients, ARobotsThirtyCyclesWithinTwiceTheirTimeAlonePlu
   EXPECT_GT(counters[5]->status_minus_4, 10) << "malformed requests are answered -4";
 }
 
-TEST(VisionServerHostileClients, SilentAndTricklingConnectionsAreClosed) {
-  LinkOptions options = Options();
-  options.io_timeout = milliseconds(300);
-  options.server.first_request_timeout = milliseconds(500);
-  auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), options);
-  CellThread cell(*link);
-  HostileCrowd crowd;
-  HostileCounters* held = nullptr;
-  HostileCounters* trickle = nullptr;
-  MeasureAndCheck(*link, 10, [&](int port) {
-    held = &crowd.Add(port, 3, HeldOpen, 2, 1);
-    trickle = &crowd.Add(port, 2, ByteAtATime("XXXX", milliseconds(100)), 3, 1);
-    return std::vector<HostileCounters*>{held, trickle};
-  });
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while ((held->closed_by_server == 0 || trickle->closed_by_server == 0) &&
-         Clock::now() < deadline) {
-    std::this_thread::sleep_for(milliseconds(20));
-  }
-  crowd.Stop();
-  EXPECT_GT(held->closed_by_server, 0) << "no request within first_request_timeout";
-  EXPECT_GT(trickle->closed_by_server, 0) << "no valid request within first_request_timeout";
-}
-
-TEST(VisionServerHostileClients, AConnectionFloodCannotLockTheRobotOut) {
-  auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), Options());
-  CellThread cell(*link);
-  HostileCrowd crowd;
-  HostileCounters* flood = nullptr;
-  MeasureAndCheck(*link, 10, [&](int port) {
-    flood = &crowd.Add(port, 60, HeldOpen, 2, 6);  // 10 per host: both limits reached
-    return std::vector<HostileCounters*>{flood};
-  });
-  crowd.Stop();
-  EXPECT_GT(flood->closed_by_server, 0) << "connections beyond the limits are closed";
-}
+// The limits of the server core (connections in all and per peer, first request timeout,
+// request rate): tcp_server_test.cc.
 
 TEST(VisionServerHostileClients, ANewConnectionDoesNotDisplaceTheRobotUntilItSpeaks) {
   auto link = OpenLink("vision-server://127.0.0.1:0", SafetyGate(SafetyLimits{}, true), Options());
-  CellThread cell(*link);
+  CellThread cell(*link, CellPicks, milliseconds(1000));
   const int robot = ConnectTcp(PortOf(*link), 2000, "127.0.0.1");
   ASSERT_GE(robot, 0);
   const int stranger = ConnectTcp(PortOf(*link), 2000, "127.0.0.2");
