@@ -1,8 +1,8 @@
 #pragma once
-// Named matcher settings (issue 6): the thesis-faithful settings, kept selectable, and the
-// measured better default (docs/accuracy.md gives every change and its measured effect), plus
-// the refinements that run after the network: a left-right consistency check and sub-pixel
-// refinement by a parabola fit of ZNCC.
+// Named matcher settings: the thesis-faithful settings, the measured default and the ablations
+// (docs/matching.md lists them; docs/accuracy.md gives their figures), plus the refinements that
+// run after the network: a left-right consistency check and a parabola sub-pixel fit of the
+// data term's similarity.
 
 #include <opencv2/core.hpp>
 #include <optional>
@@ -46,14 +46,16 @@ struct MatcherPreset {
 };
 
 /// Thesis-faithful settings (THESIS.md section 3): eq. 6.7 additive compatibility, W1 = 0.3,
-/// W2 = 0.7, A = 2, B = C = D = 1, T = 1.5, ZNCC 7x7, continuous activation, correlation
-/// initial state, thesis pruning (row max, column max, threshold 0.5), feature-vs-feature.
+/// W2 = 0.7, A = 2, B = C = D = 1, T = 1.5, ZNCC 7x7, continuous activation, all neurons off at
+/// the start, thesis pruning (row max, column max, threshold 0.5), feature-vs-feature network,
+/// top-8 candidates, 8 px support, the energy stop rule.
 MatcherPreset ThesisPreset();
 
-/// The measured better default (docs/accuracy.md): the feature-vs-disparity network with
-/// candidates at the ZNCC peaks along the row, geometric consistency times similarity (THESIS.md
-/// hint) and the left-right ZNCC check (sub-pixel refinement measured and left off). Rectified
-/// pairs only; "hnn-geometry-lr" is the previous, feature-vs-feature default.
+/// hnn-default (docs/matching.md): the feature-vs-disparity network with candidates at the
+/// K = 3 best peaks of the census similarity along the row, 14 px support, geometric consistency
+/// times similarity, the left-right check and the parabola sub-pixel fit (0.1 px floor), stopped
+/// by the decisions rule. Unrectified pairs fall back to the feature network of hnn-geometry-lr
+/// (ZNCC) with the epipolar snap and sub-pixel fit along the line.
 MatcherPreset AccurateDefaultPreset();
 
 /// All named presets; `name` lookup for --preset.
