@@ -5,6 +5,10 @@
 #include <cmath>
 #include <filesystem>
 #include <iterator>
+#include <map>
+#include <utility>
+#include <cstdio>
+#include <cstdint>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -168,6 +172,93 @@ TEST_F(MatchCli, ConfigFileSetsOptions) {
   const auto report = nlohmann::json::parse(report_file);
   EXPECT_EQ(report["engine"], "cpu");
   EXPECT_EQ(report["candidate_options"]["max_disparity"].get<double>(), 64.0);
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 41: a setup error found before any work exits 2, always.
+TEST_F(MatchCli, SetupErrorsExitTwo) {
+  std::ofstream(Path("input_text.png")) << "not an image";
+  cv::imwrite(Path("input_small.png"), cv::Mat(100, 120, CV_8UC1, cv::Scalar(80)));
+  for (const std::string& arguments :
+       {"match --left " + Path("nope.png") + " --right " + kTeddy + "/im6.png --rectified",
+        "match --left " + kTeddy + "/im2.png --right " + Path("input_small.png") + " --rectified",
+        "match --left " + kTeddy + "/im2.png --right " + kTeddy + "/im6.png --calib " + kTeddy +
+            "/im2.png"}) {
+    const CliResult result = RunCli(arguments + " --out " + Path("m.csv"));
+    EXPECT_EQ(result.exit_code, 2) << arguments << "\n" << result.output;
+    EXPECT_FALSE(fs::exists(Path("m.csv")));
+  }
+}
+
+// Issue 41: nonsense parameters are refused, naming the option.
+TEST_F(MatchCli, NonsenseRangesAreRefusedNamingTheOption) {
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity 0")), "--max-disparity 0.0 must be");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity -5")), "--max-disparity");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --dt 0")), "--dt must be");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --top-k -3")), "--top-k must be");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --engine cpu --device 3")),
+                     "--device '3' is for --engine opencl");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --overlay " + Path("o.jpgx"))), "--overlay");
+}
+
+// Issue 41: a calibration made for another image size is refused, as pick refuses it.
+TEST_F(MatchCli, CalibrationOfAnotherImageSizeIsRefused) {
+  std::ofstream(Path("input_cal.yml"))
+      << "%YAML:1.0\n---\nP1: !!opencv-matrix\n   rows: 3\n   cols: 4\n   dt: d\n"
+         "   data: [ 500., 0., 320., 0., 0., 500., 240., 0., 0., 0., 1., 0. ]\n"
+         "P2: !!opencv-matrix\n   rows: 3\n   cols: 4\n   dt: d\n"
+         "   data: [ 500., 0., 320., -50000., 0., 500., 240., 0., 0., 0., 1., 0. ]\n"
+         "image_width: 640\nimage_height: 480\n";
+  const CliResult result = RunCli("match --left " + kTeddy + "/im2.png --right " + kTeddy +
+                                  "/im6.png --calib " + Path("input_cal.yml") + " --out " +
+                                  Path("m.csv"));
+  EXPECT_EQ(result.exit_code, 2) << result.output;
+  EXPECT_NE(result.output.find("is for 640x480 images, the pair is 450x375"), std::string::npos)
+      << result.output;
+}
+
+// Issue 41: a disparity map other tools read, with the matches' disparities at their pixels.
+TEST_F(MatchCli, DisparityMapsHoldTheMatchesDisparities) {
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --disparity " +
+                                        Path("d.pfm")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  ASSERT_EQ(RunCli(Teddy("--rectified --max-disparity 64 --disparity " + Path("d.png"))).exit_code,
+            0);
+  const cv::Mat pfm = cv::imread(Path("d.pfm"), cv::IMREAD_UNCHANGED);
+  const cv::Mat png = cv::imread(Path("d.png"), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(pfm.type(), CV_32FC1);
+  ASSERT_EQ(png.type(), CV_16UC1);
+  ASSERT_EQ(pfm.size(), cv::Size(450, 375));
+  ASSERT_EQ(png.size(), cv::Size(450, 375));
+  // The last match at a pixel is the one the map holds (the maps are written in MATCHES.csv order).
+  std::ifstream csv(Path("m.csv"));
+  std::string line;
+  std::getline(csv, line);
+  std::map<std::pair<int, int>, float> expected;
+  while (std::getline(csv, line)) {
+    float xl = 0, yl = 0, xr = 0, yr = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%f,%f,%f,%f", &xl, &yl, &xr, &yr), 4) << line;
+    expected[{static_cast<int>(std::lround(yl)), static_cast<int>(std::lround(xl))}] = xl - xr;
+  }
+  ASSERT_GT(expected.size(), 1000u);
+  for (const auto& [pixel, d] : expected) {
+    EXPECT_NEAR(pfm.at<float>(pixel.first, pixel.second), d, 2e-3);
+    if (d > 0) EXPECT_NEAR(png.at<std::uint16_t>(pixel.first, pixel.second) / 256.0, d, 1.0 / 256);
+  }
+  std::size_t known = 0;
+  for (int y = 0; y < pfm.rows; ++y) {
+    for (int x = 0; x < pfm.cols; ++x) known += std::isnan(pfm.at<float>(y, x)) ? 0 : 1;
+  }
+  EXPECT_EQ(known, expected.size()) << "NaN wherever nothing matched";
+}
+
+TEST_F(MatchCli, DisparityMapsNeedARectifiedPair) {
+  ExpectCleanFailure(RunCli("match --left " + kTeddy + "/im2.png --right " + kTeddy +
+                            "/im6.png --out " + Path("m.csv") + " --disparity " + Path("e.pfm")),
+                     "--disparity needs a rectified pair");
 }
 
 }  // namespace
