@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The stress acceptance of position sensing (docs/position_sensing.md): scenes from
+# The stress acceptance of position sensing (docs/sensing.md): scenes from
 # `render`'s distribution on unseen seeds, calibrated from their target images, sensed with the
 # library defaults (what `pick` runs), results split by factor in a markdown table.
 #

@@ -264,7 +264,7 @@ MatcherOptions PickCellMatcherOptions() {
   options.features.max_features = 4000;
   // hnn-default's stop rule (docs/engine.md): the run ends when every row's decision has
   // settled (checked every 2 steps, twice in a row), not when the energy has. On the stress
-  // development ranges (docs/position_sensing.md) it sensed as the energy rule did - no far
+  // development ranges (docs/sensing.md) it sensed as the energy rule did - no far
   // unflagged pose either way, recall equal on default and hard, 3 of 2,500 gap0 parts lost
   // - and `pick` on render seed 100 matched in 87 ms (median of 7 new processes) against
   // 108 ms.

@@ -212,7 +212,7 @@ struct PositionSensingOptions {
   TopFaceEdgeOptions top_edges;
   /// The matches' refinements before triangulation (vision/matcher_presets.h):
   /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC
-  /// along the epipolar line (docs/position_sensing.md, "Refinements": height p99 0.56 ->
+  /// along the epipolar line (docs/sensing.md, "Refinements": height p99 0.56 ->
   /// 0.21 mm on default 65000-65199); the left-right check stays off.
   RefinementOptions refinement = PickCellRefinementOptions();
   std::string Check() const;

@@ -1,6 +1,6 @@
 // One source of truth for the matcher settings: `pick` (and `serve`, which shares its flags,
 // app/cell_sensing.h) runs the library's PositionSensingOptions defaults, which the stress
-// acceptance measures (docs/position_sensing.md). The command's flags start from those options,
+// acceptance measures (docs/sensing.md). The command's flags start from those options,
 // but the match preset's settings (hnn-default's stop rule and check interval) used to replace
 // them: `render --seed 249002 --min-gap 0` gave a 67 x 45 mm top 0.7 mm off with `pick` and
 // 6.6 mm off with the library, whose energy stop rule (its default then) kept 48 more points.

@@ -288,7 +288,7 @@ TEST(PositionSensing, AcceptanceOnSeededScenes) {
 TEST(PositionSensing, RenderedSceneWhereThesisClusteringFailsAndGridSucceeds) {
   SceneRenderOptions options;
   // Seeds 1-6 all pass; seed 7 gives the grid clustering a false flat part at 12 mm between two
-  // close parts (docs/position_sensing.md, known limits).
+  // close parts (docs/sensing.md, known limits).
   options.seed = 1;
   options.num_objects = 4;
   options.min_height_mm = 40.0;

@@ -31,7 +31,7 @@ def yaw_difference(a, b):
 def main():
     work = peerlib.scratch_dir("cell")
     scene = os.path.join(work, "scene")
-    # Seed 100 is one of the position-sensing acceptance scenes (docs/position_sensing.md): this
+    # Seed 100 is one of the position-sensing acceptance scenes (docs/sensing.md): this
     # test is about the chain to the PLC, sensing's recall is measured there.
     truth = peerlib.render_scene(100, scene)
     check(len(truth) >= 3, "the scene has %d parts" % len(truth))
