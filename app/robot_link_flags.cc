@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <stdexcept>
@@ -107,8 +108,12 @@ robot::CellLoopOptions RobotLinkFlags::LoopOptions() const {
 nlohmann::json CellLoopReportJson(const robot::CellLoopReport& report) {
   std::vector<double> sorted = report.cycle_ms;
   std::sort(sorted.begin(), sorted.end());
+  // Nearest-rank percentile: the smallest value with at least p of the cycles at or below it
+  // (3 cycles: p95 is the largest, never the median).
   auto percentile = [&](double p) {
-    return sorted.empty() ? 0.0 : sorted[static_cast<std::size_t>(p * double(sorted.size() - 1))];
+    if (sorted.empty()) return 0.0;
+    const auto rank = static_cast<std::size_t>(std::ceil(p * static_cast<double>(sorted.size())));
+    return sorted[std::clamp<std::size_t>(rank, 1, sorted.size()) - 1];
   };
   const robot::LinkStats& s = report.link;
   return {{"cycles", report.cycles},
