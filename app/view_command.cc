@@ -25,6 +25,7 @@ namespace {
 struct ViewArgs {
   std::string objects, left, calib;
   double duration_s = 0.0;
+  bool quiet = false;
   CellPageFlags page;
 };
 
@@ -68,10 +69,12 @@ void RunView(ViewArgs& args) {
   status.SetSensed(objects, image, P1);
   status.PublishNow();
   const auto server = StartCellPage(board, page);
-  std::printf("showing %zu parts of %s until %s\n",
-              objects.contains("objects") ? objects["objects"].size() : std::size_t{0},
-              args.objects.c_str(),
-              args.duration_s > 0.0 ? "--duration ends" : "Ctrl-C (SIGINT) or SIGTERM");
+  if (!args.quiet) {
+    std::printf("showing %zu parts of %s until %s\n",
+                objects.contains("objects") ? objects["objects"].size() : std::size_t{0},
+                args.objects.c_str(),
+                args.duration_s > 0.0 ? "--duration ends" : "Ctrl-C (SIGINT) or SIGTERM");
+  }
   std::fflush(stdout);
   const std::atomic<bool>* stop = InstallStopSignals();
   const auto end = std::chrono::steady_clock::now() +
@@ -101,6 +104,8 @@ void AddViewCommand(CLI::App& app) {
   args->page.AddTo(cmd,
                    "Serve the page at HOST:PORT (default 127.0.0.1:0: this machine only, "
                    "any free port)");
+  // The URL is what view is run for (port 0 picks a free one), so --quiet keeps that line.
+  cmd->add_flag("--quiet", args->quiet, "Print only the 'http: URL' line");
   cmd->add_option("--duration", args->duration_s, "Exit after this long (s; 0 = until a stop)")
       ->capture_default_str();
   cmd->callback([args] { RunView(*args); });
