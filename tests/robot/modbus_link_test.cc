@@ -328,11 +328,18 @@ TEST(ModbusServerLink, HeartbeatIncreases) {
   options.heartbeat_period = milliseconds(20);
   auto link = OpenServer(options);
   Plc plc(PortOf(*link));
+  // Waits for five beats (generous deadline: a loaded machine delays the heartbeat thread), and
+  // checks they came no faster than the period: at most one a 20 ms, plus the one at the start.
+  const auto start = std::chrono::steady_clock::now();
   const int first = plc.Read(mb::kHeartbeatRegister);
-  std::this_thread::sleep_for(milliseconds(300));
-  const int second = plc.Read(mb::kHeartbeatRegister);
+  int second = first;
+  while (second - first < 5 && std::chrono::steady_clock::now() - start < std::chrono::seconds(30)) {
+    std::this_thread::sleep_for(milliseconds(20));
+    second = plc.Read(mb::kHeartbeatRegister);
+  }
+  const auto elapsed = std::chrono::steady_clock::now() - start;
   EXPECT_GE(second - first, 5);
-  EXPECT_LE(second - first, 30);
+  EXPECT_LE(second - first, elapsed / milliseconds(20) + 1);
 }
 
 TEST(ModbusServerLink, PickOutsideTheWorkspaceNeverReachesTheRegisters) {
