@@ -27,6 +27,31 @@ function(hnnstereo_add_test name)
     LABELS "${ARG_LABELS}" TIMEOUT 900)
 endfunction()
 
+# hnnstereo_extended_cases(TEST COMMAND FILTER): the GoogleTest cases of the CTest test TEST that
+# the GTEST_FILTER pattern FILTER names (':'-separated) move to TEST_extended, a CTest entry
+# running the same COMMAND with TEST's environment, labels and timeout plus the label `extended`
+# (bash scripts/test.sh --extended; docs/testing.md); TEST runs the rest. For cases that assert
+# on wall time or run long sweeps: the default suite stays fast and safe on a loaded machine.
+# Call it after the test's own ENVIRONMENT is set.
+function(hnnstereo_extended_cases test command filter)
+  get_test_property(${test} ENVIRONMENT env)
+  get_test_property(${test} LABELS labels)
+  get_test_property(${test} TIMEOUT timeout)
+  if(NOT env)
+    set(env "")
+  endif()
+  if(NOT labels)
+    set(labels "")
+  endif()
+  add_test(NAME ${test}_extended COMMAND ${command})
+  set_tests_properties(${test}_extended PROPERTIES ENVIRONMENT "${env};GTEST_FILTER=${filter}"
+    LABELS "${labels};extended")
+  if(timeout)
+    set_tests_properties(${test}_extended PROPERTIES TIMEOUT ${timeout})
+  endif()
+  set_tests_properties(${test} PROPERTIES ENVIRONMENT "${env};GTEST_FILTER=-${filter}")
+endfunction()
+
 # hnnstereo_add_benchmark(NAME SOURCES ... DEPS ...)
 function(hnnstereo_add_benchmark name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})

@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
-# The whole test suite: set-up and build, then every test through CTest (OpenCL kernel tests
-# run under both POCL_WORK_GROUP_METHOD=loopvec and =cbs).
+# The test suite: set-up and build, then the tests through CTest (OpenCL kernel tests run under
+# both POCL_WORK_GROUP_METHOD=loopvec and =cbs).
 #
-#   bash scripts/test.sh [--sanitize address,undefined|thread] [CTEST ARGS...]
+#   bash scripts/test.sh [--extended | --all] [--sanitize address,undefined|thread] [CTEST ARGS...]
+#
+# Without --extended or --all: the default suite, every test but those labelled `extended` (the
+# long sweeps, the soak and the tests that assert on wall time; docs/testing.md). --extended runs
+# those only, --all both (.ci/run and the README run --all).
 #
 # --sanitize builds into a folder of its own (build-asan for address/undefined, build-tsan for
 # thread; BUILD_DIR overrides) with HNNSTEREO_SANITIZE and runs the suite with the suppression
@@ -11,9 +15,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SANITIZE=""
+SUITE=default
 ctest_args=()
 while (($#)); do
   case "$1" in
+    --extended) SUITE=extended; shift ;;
+    --all) SUITE=all; shift ;;
     --sanitize) SANITIZE=${2:?--sanitize needs address,undefined or thread}; shift 2 ;;
     --sanitize=*) SANITIZE=${1#--sanitize=}; shift ;;
     *) ctest_args+=("$1"); shift ;;
@@ -49,4 +56,8 @@ bash scripts/setup.sh
 BUILD_DIR=${BUILD_DIR:-build}
 export POCL_CACHE_DIR="$PWD/$BUILD_DIR/pocl-cache"
 mkdir -p "$POCL_CACHE_DIR"
+case "$SUITE" in
+  default) ctest_args+=(-LE extended) ;;
+  extended) ctest_args+=(-L extended) ;;
+esac
 ctest --test-dir "$BUILD_DIR" --output-on-failure -j "${TEST_JOBS:-2}" ${ctest_args[@]+"${ctest_args[@]}"}

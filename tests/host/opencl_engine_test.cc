@@ -20,17 +20,16 @@ namespace {
 
 class OpenClEngineTest : public ::testing::Test {
  protected:
+  // One runtime for the whole binary (both suites): its programs, built once per set of build
+  // options, serve every test; it lives until the process exits.
   static void SetUpTestSuite() {
+    if (runtime_ || !why_not_.empty()) return;
     std::string why_not;
     runtime_ = ocl::Runtime::Create(ocl::DeviceSelection::FromEnvironment(), &why_not).release();
-    if (!runtime_) why_not_ = why_not;
+    if (!runtime_) why_not_ = why_not.empty() ? "no device" : why_not;
     const char* method = std::getenv("POCL_WORK_GROUP_METHOD");
     std::printf("OpenCL device: %s; POCL_WORK_GROUP_METHOD=%s\n",
                 runtime_ ? runtime_->description().c_str() : why_not.c_str(), method ? method : "(default)");
-  }
-  static void TearDownTestSuite() {
-    delete runtime_;
-    runtime_ = nullptr;
   }
   void SetUp() override {
     if (!runtime_) GTEST_SKIP() << "no OpenCL device: " << why_not_;

@@ -33,6 +33,9 @@ done
 launcher=()
 if command -v ccache >/dev/null; then
   launcher=(--config-settings=cmake.define.CMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  # Paths relative to the source tree in ccache's keys: a fresh clone (another folder) finds the
+  # objects of an earlier clone's module build instead of compiling every library again.
+  export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$source_dir} CCACHE_NOHASHDIR=${CCACHE_NOHASHDIR:-1}
 fi
 start=$SECONDS
 # No build isolation: the build requirement (scikit-build-core) is in the venv, so no network is

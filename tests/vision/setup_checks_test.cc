@@ -44,8 +44,15 @@ TEST(SetupChecks, TeddyPairIsTwoViews) {
   EXPECT_FALSE(c.near_identical);
   EXPECT_FALSE(c.looks_swapped);
   EXPECT_LT(c.zero_shift_fraction, 0.5);
-  EXPECT_LT(c.time_ms, 200.0);
   EXPECT_NO_THROW(CheckDistinctViews(Teddy("im2.png"), Teddy("im6.png")));
+}
+
+// A wall-time bound: in the extended suite only (tests/vision/CMakeLists.txt), as a loaded
+// machine can fail it.
+TEST(SetupChecksTiming, TeddyPairIsComparedWithin200Ms) {
+  const cv::Mat left = Teddy("im2.png"), right = Teddy("im6.png");
+  const PairComparison c = ComparePair(left, right);
+  EXPECT_LT(c.time_ms, 200.0);
 }
 
 TEST(SetupChecks, TeddySwappedLooksSwapped) {

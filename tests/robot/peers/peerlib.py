@@ -68,10 +68,13 @@ class Serve:
         self.lines = queue.Queue()
         self.stdout = []
         self.stderr = []
-        threading.Thread(target=self._pump, args=(self.proc.stdout, self.stdout, True),
-                         daemon=True).start()
-        threading.Thread(target=self._pump, args=(self.proc.stderr, self.stderr, False),
-                         daemon=True).start()
+        self.pumps = [
+            threading.Thread(target=self._pump, args=(self.proc.stdout, self.stdout, True),
+                             daemon=True),
+            threading.Thread(target=self._pump, args=(self.proc.stderr, self.stderr, False),
+                             daemon=True)]
+        for pump in self.pumps:
+            pump.start()
         self.link = None
         deadline = time.time() + startup_timeout
         while time.time() < deadline:
@@ -103,7 +106,8 @@ class Serve:
     def wait(self, timeout):
         """Exit code, or raises subprocess.TimeoutExpired."""
         code = self.proc.wait(timeout=timeout)
-        time.sleep(0.05)  # let the pump threads drain
+        for pump in self.pumps:  # drained: both pipes reach end of file once serve has exited
+            pump.join(timeout=30)
         return code
 
     def kill(self):

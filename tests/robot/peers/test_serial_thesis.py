@@ -90,9 +90,15 @@ def main():
         code = serve.wait(timeout=60)
         elapsed = time.time() - start
         check(code == 0, "serve exit %r: %s" % (code, "".join(serve.stderr)))
-        time.sleep(0.5)
+        # serve has exited, so every command is in the pty: wait until they are read (a loaded
+        # machine may take a while), then take whatever else is there.
+        want = CYCLES * (len(REACHABLE) * len(PICK_SHAPE) + 2)
+        deadline = time.time() + 30
+        while received.count(b"\r") < want and time.time() < deadline:
+            time.sleep(0.05)
         stop_reading.set()
         thread.join(timeout=2)
+        received.extend(reader.read(reader.in_waiting))
         reader.close()
 
         text = received.decode("ascii")
