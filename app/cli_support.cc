@@ -171,6 +171,12 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
                             : "zncc");
   cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
       ->capture_default_str();
+  AddEngineFlags(cmd);
+}
+
+void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
+  auto& o = options;
+  const vision::MatcherPreset shown = ShownPreset();
   cmd->add_option("--engine", engine,
                   "opencl (default; falls back to cpu with a notice when no OpenCL device "
                   "exists), cpu (C++ reference of the parallel dynamics) or thesis (serial "
@@ -178,12 +184,6 @@ void MatcherFlags::AddTo(CLI::App* cmd) {
       ->capture_default_str();
   cmd->add_option("--device", device,
                   "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
-  AddEngineFlags(cmd);
-}
-
-void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
-  auto& o = options;
-  const vision::MatcherPreset shown = ShownPreset();
                   "first GPU, else the first device)");
   cmd->add_option("--preset", preset,
                   "Named settings: hnn-default (geometry x similarity compatibility, the census "
@@ -205,16 +205,16 @@ void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
       "Sparse networks: connect neurons whose left features are within this many px (default: "
       "the preset's)")
       ->default_str(FormatDefault(shown.matcher.energy.support_radius_px));
-  cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
-  cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
-  cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
-  cmd->add_option("--D", o.energy.D, "Energy weight of the epipolar distance")->capture_default_str();
-  cmd->add_option("--lambda", o.energy.lambda, "e  AddEnergyFlags(cmd);
+  AddEnergyFlags(cmd);
 }
 
 void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
   auto& o = options;
-q. 6.6 slope")->capture_default_str();
+  cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
+  cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
+  cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
+  cmd->add_option("--D", o.energy.D, "Energy weight of the epipolar distance")->capture_default_str();
+  cmd->add_option("--lambda", o.energy.lambda, "eq. 6.6 slope")->capture_default_str();
   cmd->add_option("--theta", o.energy.theta, "eq. 6.6 centre")->capture_default_str();
   cmd->add_flag("--distance-attenuation", o.energy.distance_attenuation,
                 "Printed-code attenuation of weights between far-apart left features");

@@ -102,7 +102,11 @@ void AddRenderCommand(CLI::App& app) {
       "Writes DIR/left.png, right.png, calib.yml (the true cameras), truth.json (OBJECTS.json "
       "schema plus shape and size; tallest first) and target/ (images + target.yml).");
   cmd->add_option("--seed", args->options.seed, "Seed: the same seed gives the same scene")
-      ->check(CLI::NonNegativeNumber)
+      ->check(CLI::Validator(
+          [](std::string& value) {
+            return value.rfind('-', 0) == 0 ? "must be a number >= 0" : std::string();
+          },
+          "SEED >= 0"))
       ->required();
   cmd->add_option("--objects", args->options.num_objects,
                   "Number of parts (1-30; default: 1-9 drawn from the seed, as many as fit the work area)")
