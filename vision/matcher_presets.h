@@ -50,10 +50,12 @@ struct MatcherPreset {
 /// initial state, thesis pruning (row max, column max, threshold 0.5), feature-vs-feature.
 MatcherPreset ThesisPreset();
 
-/// The measured better default (docs/accuracy.md): the feature-vs-disparity network with
-/// candidates at the ZNCC peaks along the row, geometric consistency times similarity (THESIS.md
-/// hint) and the left-right ZNCC check (sub-pixel refinement measured and left off). Rectified
-/// pairs only; "hnn-geometry-lr" is the previous, feature-vs-feature default.
+/// "hnn-default", the measured better default (docs/accuracy.md): the feature-vs-disparity
+/// network with candidates at the K = 3 best peaks along the row of the census data term (5 x 5
+/// census, Hamming costs summed over 13 x 13 with adaptive support weights, gamma 20; its
+/// fitted confidence), geometric consistency times similarity (THESIS.md hint) over a 14 px
+/// support, the left-right check and the parabola sub-pixel fit (rectified pairs; unrectified
+/// ones snap onto the epipolar line and fit along it). Stops when every row's decision settled.
 MatcherPreset AccurateDefaultPreset();
 
 /// All named presets; `name` lookup for --preset.
