@@ -56,7 +56,7 @@ struct GridClusteringOptions {
   int min_points_per_cell = 1;   ///< sparser cells are ignored (isolated mismatches)
   /// Smaller components are noise (mismatches, occluding contours). Kept low: a top face whose
   /// sides run along the epipolar lines (few, weak matches there) falls apart into its two
-  /// strong edges and its marks, 20-40 points each (seed 108); position sensing joins such
+  /// strong edges and its marks, 20-40 points each; position sensing joins such
   /// fragments at one height (MergeTopFaceIslands) and only then drops parts under
   /// PositionSensingOptions::min_strong_points. The smallest default part (25 mm, 10 mm tall)
   /// gives well over 100 matched points.

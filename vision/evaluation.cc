@@ -511,45 +511,37 @@ std::string EvaluationOptions::Check() const {
   return {};
 }
 
-PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions& options,
-                            ocl::Runtime* runtime) {
-  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
-  PairEvaluation evaluation;
-  evaluation.name = pair.name;
-  evaluation.layout = std::string(MiddleburyLayoutName(pair.layout));
-  evaluation.occlusion_source = pair.occlusion_source;
-  evaluation.width = pair.left_grey.cols;
-  evaluation.height = pair.left_grey.rows;
-  evaluation.min_disparity = pair.min_disparity;
-  evaluation.max_disparity = pair.max_disparity;
+namespace {
 
-  // Density's denominator: every Canny edge pixel of the left image (no cap) with ground truth.
-  FeatureOptions edge_options = options.presets.front().matcher.features;
-  edge_options.max_features = 0;
-  const FeatureReport edges = DetectFeatures(pair.left_grey, edge_options);
-  evaluation.n_edges = static_cast<int>(edges.points.size());
-  TruthView truth;
-  truth.disparity = &pair.disparity;
-  truth.nonoccluded = &pair.nonoccluded;
-  for (const Eigen::Vector2f& p : edges.points) {
-    if (TruthAt(truth, p)) ++evaluation.n_edges_with_truth;
-  }
-  const int n_edges = evaluation.n_edges_with_truth;
-  const int d_min = static_cast<int>(pair.min_disparity);
-  const int d_max = static_cast<int>(pair.max_disparity);
+// The pair's description in the evaluation and its notices on how occlusion is known: from a
+// mask, from a 1 px left-right check of the two ground-truth maps, or not at all.
+void DescribePair(const MiddleburyPair& pair, PairEvaluation* evaluation) {
+  evaluation->name = pair.name;
+  evaluation->layout = std::string(MiddleburyLayoutName(pair.layout));
+  evaluation->occlusion_source = pair.occlusion_source;
+  evaluation->width = pair.left_grey.cols;
+  evaluation->height = pair.left_grey.rows;
+  evaluation->min_disparity = pair.min_disparity;
+  evaluation->max_disparity = pair.max_disparity;
   if (pair.occlusion_source == "left-right check") {
-    evaluation.notices.push_back(
+    evaluation->notices.push_back(
         "no occlusion mask: occluded pixels are those failing a 1 px left-right check of the left "
         "and right ground-truth maps");
   } else if (pair.occlusion_source != "mask") {
-    evaluation.notices.push_back(
+    evaluation->notices.push_back(
         "no occlusion mask and no right-view ground truth: every pixel with ground truth counts "
         "as non-occluded, so occluded matches are scored as visible ones (figures differ from the "
         "same pair read with its right-view ground truth)");
   }
+}
 
+// The matches of each preset on the rectified pair, scored and ranked into `evaluation`.
+// Presets that differ only in their refinements share one network run. Returns the first
+// preset's left pixels (the baselines are scored at them).
+std::vector<Eigen::Vector2f> EvaluatePresets(const MiddleburyPair& pair, const EvaluationOptions& options,
+                                             const TruthView& truth, int n_edges, ocl::Runtime* runtime,
+                                             PairEvaluation* evaluation) {
   std::vector<Eigen::Vector2f> default_pixels;
-  // Presets that differ only in their refinements share one network run.
   std::vector<std::pair<std::string, MatchReport>> networks;
   for (std::size_t p = 0; p < options.presets.size(); ++p) {
     MatcherPreset preset = options.presets[p];
@@ -571,114 +563,155 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
       const auto refine_start = Clock::now();
       RefineMatches(pair.left_grey, pair.right_grey, nullptr, preset.matcher, preset.refinement, &report);
       report.timing_ms.total += MillisecondsSince(refine_start);
-      if (!report.engine_notice.empty()) evaluation.notices.push_back(report.engine_notice);
+      if (!report.engine_notice.empty()) evaluation->notices.push_back(report.engine_notice);
       matches = FromReport(preset.name, report);
     } catch (const std::exception& error) {
-      evaluation.notices.push_back(preset.name + ": " + error.what());
+      evaluation->notices.push_back(preset.name + ": " + error.what());
     }
     if (p == 0) default_pixels = matches.left;
-    evaluation.scores.push_back(ScoreAndCurve(matches, truth, n_edges, &evaluation));
+    evaluation->scores.push_back(ScoreAndCurve(matches, truth, n_edges, evaluation));
     RankedMethod ranked;
     ranked.method = preset.name;
     ranked.ranked = RankMatches(matches, truth, n_edges);
     ranked.time_ms = matches.time_ms;
-    evaluation.ranked.push_back(std::move(ranked));
+    evaluation->ranked.push_back(std::move(ranked));
   }
+  return default_pixels;
+}
 
+// The baselines: winner-take-all ZNCC, StereoBM and StereoSGBM scored at the first preset's
+// pixels; WTA ZNCC over every edge pixel (curve, and ranked by its margin) to compare precision
+// at equal density; BM and SGBM ranked by sweeping their uniqueness ratio.
+void EvaluateBaselines(const MiddleburyPair& pair, const EvaluationOptions& options,
+                       const std::vector<Eigen::Vector2f>& edge_points,
+                       const std::vector<Eigen::Vector2f>& default_pixels, const TruthView& truth,
+                       int n_edges, PairEvaluation* evaluation) {
+  const int d_min = static_cast<int>(pair.min_disparity);
+  const int d_max = static_cast<int>(pair.max_disparity);
+  evaluation->scores.push_back(ScoreAndCurve(
+      WinnerTakeAllZncc(pair.left_grey, pair.right_grey, default_pixels, options.wta_zncc_window,
+                        d_min, d_max),
+      truth, n_edges, evaluation));
+  evaluation->scores.push_back(ScoreAndCurve(
+      OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, false, d_min, d_max - d_min),
+      truth, n_edges, evaluation));
+  evaluation->scores.push_back(ScoreAndCurve(
+      OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, true, d_min, d_max - d_min),
+      truth, n_edges, evaluation));
+  MethodMatches all_edges = WinnerTakeAllZncc(pair.left_grey, pair.right_grey, edge_points,
+                                              options.wta_zncc_window, d_min, d_max);
+  all_edges.method = "wta-zncc (all edges)";
+  evaluation->curves.emplace_back(all_edges.method, PrecisionDensityCurve(all_edges, truth, n_edges));
+  RankedMethod wta;
+  wta.method = "wta-zncc (margin)";
+  wta.ranked = RankMatches(all_edges, truth, n_edges);
+  wta.time_ms = all_edges.time_ms;
+  evaluation->ranked.push_back(std::move(wta));
+  const std::vector<int> ratios(std::begin(kUniquenessSweep), std::end(kUniquenessSweep));
+  for (const bool semi_global : {true, false}) {
+    RankedMethod sweep;
+    sweep.method = semi_global ? "opencv-sgbm (sweep)" : "opencv-bm (sweep)";
+    sweep.swept = true;
+    const auto sweep_start = Clock::now();
+    sweep.sweep = SweepUniqueness(pair.left_grey, pair.right_grey, edge_points, semi_global, d_min,
+                                  d_max - d_min, truth, n_edges, ratios);
+    sweep.time_ms = MillisecondsSince(sweep_start);
+    evaluation->ranked.push_back(std::move(sweep));
+  }
+}
+
+// A preset for the warped (unrectified) pair: gated by F and a depth range; the disparity
+// network, which needs rectified rows, becomes the feature-vs-feature network with the
+// preset's other settings (ZNCC data term), with a notice.
+MatcherPreset UnrectifiedPreset(MatcherPreset preset, double min_depth, double max_depth,
+                                PairEvaluation* evaluation) {
+  preset.name += " (warped)";
+  preset.matcher.candidates.rectified = false;
+  preset.matcher.candidates.z_range_mm = std::make_pair(min_depth, max_depth);
+  if (preset.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity) {
+    preset.matcher.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
+    preset.matcher.candidates.zncc_peaks = false;
+    preset.matcher.candidates.subpixel_peaks = false;
+    preset.matcher.data_term = DataTermOptions{};  // the feature network's ZNCC
+    preset.matcher.confidence = ConfidenceOptionsFor(preset.matcher.data_term);
+    evaluation->notices.push_back(preset.name +
+                                  ": the disparity network needs rectified rows; the warped "
+                                  "run uses the feature-vs-feature network (ZNCC data term)");
+  }
+  return preset;
+}
+
+// The unrectified version (EvaluationOptions::warped): the right image warped by H, P2 replaced
+// by H P2; the matcher sees only the calibration (epipolar gating from F, depth range from the
+// disparity range with a 100 mm baseline), scored after mapping back with H.
+void EvaluateWarped(const MiddleburyPair& pair, const EvaluationOptions& options,
+                    const TruthView& truth, int n_edges, ocl::Runtime* runtime,
+                    PairEvaluation* evaluation) {
+  cv::Mat H_cv(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) H_cv.at<double>(r, c) = options.warp(r, c);
+  cv::Mat right_warped;
+  cv::warpPerspective(pair.right_grey, right_warped, H_cv, pair.right_grey.size(), cv::INTER_LINEAR,
+                      cv::BORDER_CONSTANT, cv::Scalar(0));
+  calib::StereoCalibration calibration =
+      SyntheticRectifiedCalibration(pair.left_grey.cols, pair.left_grey.rows);
+  calibration.P2 = options.warp * calibration.P2;
+  calibration.rectified = false;
+  calibration.DeriveFromProjections();
+  const double focal_baseline = calibration.P1(0, 0) * 100.0;
+  const double min_depth = focal_baseline / std::max(1.0, pair.max_disparity);
+  const double max_depth = focal_baseline / std::max(0.5, pair.min_disparity);
+  TruthView warped_truth = truth;
+  warped_truth.right_from_rectified = options.warp;
+  std::vector<Eigen::Vector2f> warped_pixels;
+  for (std::size_t p = 0; p < options.presets.size(); ++p) {
+    const MatcherPreset preset = UnrectifiedPreset(options.presets[p], min_depth, max_depth, evaluation);
+    MethodMatches matches;
+    matches.method = preset.name;
+    try {
+      const MatchReport report =
+          MatchWithPreset(pair.left_grey, right_warped, &calibration, preset, runtime);
+      matches = FromReport(preset.name, report);
+    } catch (const std::exception& error) {
+      evaluation->notices.push_back(preset.name + ": " + error.what());
+    }
+    if (p == 0) warped_pixels = matches.left;
+    evaluation->scores.push_back(ScoreAndCurve(matches, warped_truth, n_edges, evaluation));
+  }
   if (options.baselines) {
-    evaluation.scores.push_back(ScoreAndCurve(
-        WinnerTakeAllZncc(pair.left_grey, pair.right_grey, default_pixels, options.wta_zncc_window,
-                          d_min, d_max),
-        truth, n_edges, &evaluation));
-    evaluation.scores.push_back(ScoreAndCurve(
-        OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, false, d_min, d_max - d_min),
-        truth, n_edges, &evaluation));
-    evaluation.scores.push_back(ScoreAndCurve(
-        OpenCvBlockMatching(pair.left_grey, pair.right_grey, default_pixels, true, d_min, d_max - d_min),
-        truth, n_edges, &evaluation));
-    // Curves only: winner-take-all ZNCC over every edge pixel, ranked by its score, to compare
-    // precision at equal density rather than at the same pixels.
-    MethodMatches all_edges = WinnerTakeAllZncc(pair.left_grey, pair.right_grey, edges.points,
-                                                options.wta_zncc_window, d_min, d_max);
-    all_edges.method = "wta-zncc (all edges)";
-    evaluation.curves.emplace_back(all_edges.method, PrecisionDensityCurve(all_edges, truth, n_edges));
-
-    // Ranked by each method's own confidence over all edge pixels.
-    RankedMethod wta;
-    wta.method = "wta-zncc (margin)";
-    wta.ranked = RankMatches(all_edges, truth, n_edges);
-    wta.time_ms = all_edges.time_ms;
-    evaluation.ranked.push_back(std::move(wta));
-    const std::vector<int> ratios(std::begin(kUniquenessSweep), std::end(kUniquenessSweep));
-    for (const bool semi_global : {true, false}) {
-      RankedMethod sweep;
-      sweep.method = semi_global ? "opencv-sgbm (sweep)" : "opencv-bm (sweep)";
-      sweep.swept = true;
-      const auto sweep_start = Clock::now();
-      sweep.sweep = SweepUniqueness(pair.left_grey, pair.right_grey, edges.points, semi_global,
-                                    d_min, d_max - d_min, truth, n_edges, ratios);
-      sweep.time_ms = MillisecondsSince(sweep_start);
-      evaluation.ranked.push_back(std::move(sweep));
-    }
+    MethodMatches wta = WinnerTakeAllZnccAlongRay(pair.left_grey, right_warped, calibration,
+                                                  warped_pixels, options.wta_zncc_window,
+                                                  min_depth, max_depth);
+    wta.method = "wta-zncc (warped)";
+    evaluation->scores.push_back(ScoreAndCurve(wta, warped_truth, n_edges, evaluation));
   }
+}
 
-  if (options.warped) {
-    // Unrectified version: the right image warped by H, P2 replaced by H P2; the matcher sees
-    // only the calibration (epipolar gating from F, depth range from the disparity range).
-    cv::Mat H_cv(3, 3, CV_64F);
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) H_cv.at<double>(r, c) = options.warp(r, c);
-    cv::Mat right_warped;
-    cv::warpPerspective(pair.right_grey, right_warped, H_cv, pair.right_grey.size(), cv::INTER_LINEAR,
-                        cv::BORDER_CONSTANT, cv::Scalar(0));
-    calib::StereoCalibration calibration =
-        SyntheticRectifiedCalibration(pair.left_grey.cols, pair.left_grey.rows);
-    calibration.P2 = options.warp * calibration.P2;
-    calibration.rectified = false;
-    calibration.DeriveFromProjections();
-    const double focal_baseline = calibration.P1(0, 0) * 100.0;
-    const double min_depth = focal_baseline / std::max(1.0, pair.max_disparity);
-    const double max_depth = focal_baseline / std::max(0.5, pair.min_disparity);
-    TruthView warped_truth = truth;
-    warped_truth.right_from_rectified = options.warp;
-    std::vector<Eigen::Vector2f> warped_pixels;
-    for (std::size_t p = 0; p < options.presets.size(); ++p) {
-      MatcherPreset preset = options.presets[p];
-      preset.name += " (warped)";
-      preset.matcher.candidates.rectified = false;
-      preset.matcher.candidates.z_range_mm = std::make_pair(min_depth, max_depth);
-      if (preset.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity) {
-        // Disparity levels need rectified rows: the unrectified run uses the feature-vs-feature
-        // network with the preset's other settings.
-        preset.matcher.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
-        preset.matcher.candidates.zncc_peaks = false;
-        preset.matcher.candidates.subpixel_peaks = false;
-        preset.matcher.data_term = DataTermOptions{};  // the feature network's ZNCC
-        preset.matcher.confidence = ConfidenceOptionsFor(preset.matcher.data_term);
-        evaluation.notices.push_back(preset.name +
-                                     ": the disparity network needs rectified rows; the warped "
-                                     "run uses the feature-vs-feature network (ZNCC data term)");
-      }
-      MethodMatches matches;
-      matches.method = preset.name;
-      try {
-        const MatchReport report =
-            MatchWithPreset(pair.left_grey, right_warped, &calibration, preset, runtime);
-        matches = FromReport(preset.name, report);
-      } catch (const std::exception& error) {
-        evaluation.notices.push_back(preset.name + ": " + error.what());
-      }
-      if (p == 0) warped_pixels = matches.left;
-      evaluation.scores.push_back(ScoreAndCurve(matches, warped_truth, n_edges, &evaluation));
-    }
-    if (options.baselines) {
-      MethodMatches wta = WinnerTakeAllZnccAlongRay(pair.left_grey, right_warped, calibration,
-                                                    warped_pixels, options.wta_zncc_window,
-                                                    min_depth, max_depth);
-      wta.method = "wta-zncc (warped)";
-      evaluation.scores.push_back(ScoreAndCurve(wta, warped_truth, n_edges, &evaluation));
-    }
+}  // namespace
+
+PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions& options,
+                            ocl::Runtime* runtime) {
+  if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
+  PairEvaluation evaluation;
+  // Density's denominator: every Canny edge pixel of the left image (no cap) with ground truth.
+  FeatureOptions edge_options = options.presets.front().matcher.features;
+  edge_options.max_features = 0;
+  const FeatureReport edges = DetectFeatures(pair.left_grey, edge_options);
+  evaluation.n_edges = static_cast<int>(edges.points.size());
+  TruthView truth;
+  truth.disparity = &pair.disparity;
+  truth.nonoccluded = &pair.nonoccluded;
+  for (const Eigen::Vector2f& p : edges.points) {
+    if (TruthAt(truth, p)) ++evaluation.n_edges_with_truth;
   }
+  const int n_edges = evaluation.n_edges_with_truth;
+  DescribePair(pair, &evaluation);
+  const std::vector<Eigen::Vector2f> default_pixels =
+      EvaluatePresets(pair, options, truth, n_edges, runtime, &evaluation);
+  if (options.baselines) {
+    EvaluateBaselines(pair, options, edges.points, default_pixels, truth, n_edges, &evaluation);
+  }
+  if (options.warped) EvaluateWarped(pair, options, truth, n_edges, runtime, &evaluation);
   return evaluation;
 }
 

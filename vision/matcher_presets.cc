@@ -69,11 +69,11 @@ MatcherPreset FeatureNetworkPreset() {
   MatcherPreset preset;
   preset.name = "hnn-geometry-lr";
   preset.matcher = MatcherOptions{};
-  // Measured in docs/accuracy.md: the pairwise term as geometric consistency times similarity
-  // (THESIS.md section 3 hint) instead of eq. 6.7's additive mix.
+  // The pairwise term as geometric consistency times similarity (THESIS.md section 3 hint), not
+  // eq. 6.7's additive mix (docs/accuracy.md).
   preset.matcher.energy.objective = hnn::Objective::kGeometrySimilarity;
-  // Measured: the ZNCC left-right check raises precision; the parabola sub-pixel fit does not
-  // pay at 1 px (Tsukuba's integer ground truth loses 3 points), so it stays off.
+  // The left-right check raises precision; no sub-pixel fit (Tsukuba's integer ground truth
+  // loses with it).
   preset.refinement.left_right_check = true;
   return preset;
 }
@@ -83,45 +83,37 @@ MatcherPreset FeatureNetworkPreset() {
 MatcherPreset AccurateDefaultPreset() {
   MatcherPreset preset = FeatureNetworkPreset();
   preset.name = "hnn-default";
-  // Measured in docs/accuracy.md: the feature-vs-disparity network (columns = disparity levels,
-  // so a left edge pixel may take any disparity, as winner-take-all does, instead of only the
-  // positions of right Canny pixels), with candidates at the K best local maxima of ZNCC along
-  // the row (integer disparities: the sub-pixel vertex was measured and lost 0.3 points).
-  // Rectified pairs only (the warped evaluation falls back to the feature network).
+  // The feature-vs-disparity network (columns = disparity levels: a left edge pixel may take
+  // any disparity, as winner-take-all does, not only the positions of right Canny pixels), with
+  // candidates at the K best local maxima of the similarity along the row, at integer
+  // disparities. Rectified pairs only (unrectified ones fall back to the feature network).
   preset.matcher.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
   preset.matcher.candidates.rectified = true;
   preset.matcher.candidates.zncc_peaks = true;
-  // Measured: 4 peaks per left feature instead of 8 (+0.2 points over WTA, 9x faster) and a
-  // 12 px support radius instead of 8 (+0.2 points; 16 px gave the same precision, slower).
-  // With the census data term below, re-measured (docs/accuracy.md, "The candidates and the
-  // support, re-measured with the census term"): K = 3 and a 14 px radius, with gamma 20 and
-  // the confidence refitted for them, take the ranked 75 % from 0.79 to 0.73 of StereoSGBM's
-  // error and the precision from 95.2 to 95.4 % at +0.3 points of density.
+  // K = 3 peaks and a 14 px support radius, measured with the census term below
+  // (docs/accuracy.md).
   preset.matcher.candidates.top_k = 3;
   preset.matcher.energy.support_radius_px = 14.0;
-  // Measured: the census data term (5 x 5 census, Hamming costs summed over 13 x 13 with
-  // adaptive support weights, gamma 20) instead of ZNCC 7 x 7 for the candidates' peaks, the
-  // biases, the similarity in the compatibilities and the left-right check: fewer wrong
-  // matches at depth edges, where a ZNCC window is ruled by the occluding contour.
+  // The census data term (5 x 5 census, Hamming costs summed over 13 x 13 with adaptive
+  // support weights, gamma 20) for the candidates' peaks, the biases, the similarity in the
+  // compatibilities and the left-right check: fewer wrong matches at depth edges than ZNCC,
+  // whose window is ruled by the occluding contour.
   preset.matcher.data_term.kind = DataTermOptions::Kind::kCensus;
   preset.matcher.data_term.census_window = 5;
   preset.matcher.data_term.aggregation_window = 13;
   preset.matcher.data_term.support_gamma = 20.0;
   preset.matcher.confidence = CensusConfidenceOptions();  // fitted for it (docs/accuracy.md)
   // Unrectified pairs (eval --warped, match/pick with a calibration): snap the right point onto
-  // its epipolar line, then the parabola along the line. Measured on the five warped pairs:
-  // 92.2 % within 1 px -> 93.7 % (snap) -> 94.8 % (snap + sub-pixel), docs/accuracy.md.
+  // its epipolar line, then the parabola along the line (docs/accuracy.md, the warped pairs).
   preset.refinement.epipolar_snap = true;
   preset.refinement.epipolar_subpixel = true;
   // Rectified pairs: the parabola sub-pixel fit of the census similarity, leaving a match whose
-  // vertex lies within 0.1 px of its whole pixel as it is. Measured (docs/accuracy.md): ranked
-  // 75 % density 0.86 -> 0.79 of StereoSGBM's error (Adirondack 1.02 -> 0.86), Tsukuba as
-  // without the fit; the fit without that floor lost Tsukuba (0.65 -> 1.23).
+  // vertex lies within 0.1 px of its whole pixel as it is (integer ground truth such as
+  // Tsukuba's loses without that floor; docs/accuracy.md).
   preset.refinement.subpixel = true;
   preset.refinement.subpixel_min_offset_px = 0.1;
-  // Measured on Teddy (all edges, docs/engine.md): the matches are settled long before the
-  // energy is - 99.8 % of those after 85 steps are there after 10 - so the run stops when
-  // every row's decision has settled (checked every 2 steps, twice in a row).
+  // The matches settle long before the energy does (docs/engine.md): the run stops when every
+  // row's decision has settled (checked every 2 steps, twice in a row).
   preset.matcher.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
   preset.matcher.dynamics.energy_interval = 2;
   preset.matcher.dynamics.stable_checks = 2;
@@ -174,6 +166,115 @@ double PatchZncc(const cv::Mat& a, const cv::Mat& b) {
   return da.dot(db) / (static_cast<double>(a.total()) * std_a[0] * std_b[0]);
 }
 
+// The epipolar snap and sub-pixel fit (RefineAlongEpipolarLine) of every match: each match
+// alone, in parallel, without the ZNCC tables.
+void RefineAllAlongEpipolarLines(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                 const Eigen::Matrix3d& F, int zncc_window, bool subpixel,
+                                 std::vector<StereoMatch>* matches_out) {
+  std::vector<StereoMatch>& matches = *matches_out;
+  cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
+    for (int i = range.start; i < range.end; ++i) {
+      RefineAlongEpipolarLine(left_grey, right_grey, F, zncc_window, subpixel,
+                              &matches[static_cast<std::size_t>(i)]);
+    }
+  });
+}
+
+// The left-right check and the row sub-pixel fit of one match, on the similarity tables.
+struct TableRefiner {
+  const cv::Mat& left_grey;
+  const calib::StereoCalibration* calibration;
+  const ZnccMatcher& zncc;
+  const RefinementOptions& refinement;
+  bool rectified;
+  int d_min, d_max;  // the disparity levels searched on a rectified pair
+
+  // Whether the match is kept; refines its right x in place (`reverse_profile`: scratch).
+  bool Refine(StereoMatch& match, std::vector<float>& reverse_profile) const {
+    if (refinement.left_right_check && !PassesLeftRightCheck(match, reverse_profile)) return false;
+    if (refinement.subpixel && rectified) SubpixelAlongRow(&match);
+    return true;
+  }
+
+ private:
+  // The reverse search: the best left point for this right point (winner-take-all ZNCC) lies
+  // within left_right_tolerance_px of the match's (+ 0.5 px across the row).
+  bool PassesLeftRightCheck(const StereoMatch& match, std::vector<float>& reverse_profile) const {
+    float best = -std::numeric_limits<float>::infinity();
+    Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
+    if (rectified) {
+      // Every disparity's ZNCC at once (vision/correlation.h), then the same scan.
+      reverse_profile.resize(static_cast<std::size_t>(std::max(0, d_max - d_min + 1)));
+      zncc.ReverseRowProfile(match.right, d_min, d_max, reverse_profile.data());
+      for (int d = d_min; d <= d_max; ++d) {
+        const Eigen::Vector2f left(std::round(match.right.x()) + static_cast<float>(d),
+                                   std::round(match.right.y()));
+        if (left.x() > static_cast<float>(left_grey.cols - 1)) break;
+        const float score = reverse_profile[static_cast<std::size_t>(d - d_min)];
+        if (score > best) best = score, best_left = left;
+      }
+    } else {
+      const Eigen::Vector3d line =
+          calibration->F.transpose() * Eigen::Vector3d(match.right.x(), match.right.y(), 1.0);
+      for (const Eigen::Vector2f& left : PixelsOnLine(line, left_grey.cols, left_grey.rows)) {
+        const float score = zncc.ReverseSimilarity(left, match.right);
+        if (score > best) best = score, best_left = left;
+      }
+    }
+    return std::abs(best_left.x() - match.left.x()) <= refinement.left_right_tolerance_px &&
+           std::abs(best_left.y() - match.left.y()) <= refinement.left_right_tolerance_px + 0.5f;
+  }
+
+  // Parabola through the similarity at x - 1, x, x + 1: vertex offset
+  // (c- - c+) / (2 (c- - 2 c0 + c+)), applied when at least subpixel_min_offset_px.
+  void SubpixelAlongRow(StereoMatch* match) const {
+    const Eigen::Vector2f step(1.0f, 0.0f);
+    const Eigen::Vector2f right(std::round(match->right.x()), std::round(match->right.y()));
+    double before = 0.0, centre = 0.0, after = 0.0;
+    const float d = match->left.x() - right.x();
+    if (right.y() == match->left.y() && d == std::round(d) && std::abs(d) < 1e6f) {
+      // The three as one row profile (one set of support weights for the census term; the
+      // same values as pair by pair, vision/correlation.h): disparities d + 1, d, d - 1.
+      float three[3];
+      const int level = static_cast<int>(d);
+      zncc.RowProfile(match->left, level - 1, level + 1, three);
+      before = three[2], centre = three[1], after = three[0];
+    } else {
+      before = zncc(match->left, right - step);
+      centre = zncc(match->left, right);
+      after = zncc(match->left, right + step);
+    }
+    const double curvature = before - 2.0 * centre + after;
+    if (curvature < 0.0) {
+      const double offset = std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
+      if (std::abs(offset) >= refinement.subpixel_min_offset_px) {
+        match->right.x() = right.x() + static_cast<float>(offset);
+      }
+    }
+  }
+};
+
+// Runs `refiner` on every match in parallel (its scratch per thread), then keeps the kept ones
+// in their order.
+void RefineOnTables(const TableRefiner& refiner, std::vector<StereoMatch>* matches_out) {
+  std::vector<StereoMatch>& matches = *matches_out;
+  std::vector<unsigned char> keep(matches.size(), 0);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
+    std::vector<float> reverse_profile;
+    for (int i = range.start; i < range.end; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      keep[k] = refiner.Refine(matches[k], reverse_profile) ? 1 : 0;
+    }
+  });
+  std::vector<StereoMatch> kept;
+  kept.reserve(matches.size());
+  for (std::size_t k = 0; k < matches.size(); ++k) {
+    if (keep[k]) kept.push_back(matches[k]);
+  }
+  matches = std::move(kept);
+}
+
+
 }  // namespace
 
 void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey,
@@ -225,110 +326,27 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
   if (!rectified && calibration == nullptr) {
     throw std::invalid_argument("RefineMatches: an unrectified pair needs its calibration");
   }
-  // The epipolar snap and sub-pixel fit work per match alone (after the left-right check):
-  // in parallel, and without the ZNCC tables, which only the check and the row fit use.
+  // The epipolar snap and sub-pixel fit run after the left-right check.
   const bool along_epipolar_lines =
       !rectified && (refinement.epipolar_snap || refinement.epipolar_subpixel);
-  const auto refine_along_epipolar_lines = [&] {
-    if (!along_epipolar_lines) return;
-    std::vector<StereoMatch>& matches = report->matches;
-    cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
-      for (int i = range.start; i < range.end; ++i) {
-        RefineAlongEpipolarLine(left_grey, right_grey, calibration->F, matcher.zncc_window,
-                                refinement.epipolar_subpixel, &matches[static_cast<std::size_t>(i)]);
-      }
-    });
-  };
-  if (!refinement.left_right_check && !(refinement.subpixel && rectified)) {
-    refine_along_epipolar_lines();
-    return;
-  }
-  // The matcher's own similarity tables when they are the ones asked for (MatchStereo's, on the
-  // same pair), else built here.
-  if (!similarity || similarity->window() != matcher.zncc_window ||
-      !(similarity->data_term() == matcher.data_term) ||
-      similarity->right_width() != right_grey.cols) {
-    similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey, matcher.zncc_window,
-                                                     matcher.data_term);
-  }
-  const ZnccMatcher& zncc = *similarity;
-  const int d_min = static_cast<int>(std::ceil(matcher.candidates.min_disparity));
-  const int d_max = static_cast<int>(std::floor(matcher.candidates.max_disparity));
-  // Each match is checked and refined on its own (the matcher's scratch is per thread): the
-  // matches in parallel, then the kept ones in their order.
-  std::vector<StereoMatch>& matches = report->matches;
-  std::vector<unsigned char> keep(matches.size(), 0);
-  const auto refine = [&](StereoMatch& match, std::vector<float>& reverse_profile) -> bool {
-    if (refinement.left_right_check) {
-      // The reverse search: the best left point for this right point (winner-take-all ZNCC).
-      float best = -std::numeric_limits<float>::infinity();
-      Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
-      if (rectified) {
-        // Every disparity's ZNCC at once (vision/correlation.h), then the same scan.
-        reverse_profile.resize(static_cast<std::size_t>(std::max(0, d_max - d_min + 1)));
-        zncc.ReverseRowProfile(match.right, d_min, d_max, reverse_profile.data());
-        for (int d = d_min; d <= d_max; ++d) {
-          const Eigen::Vector2f left(std::round(match.right.x()) + static_cast<float>(d),
-                                     std::round(match.right.y()));
-          if (left.x() > static_cast<float>(left_grey.cols - 1)) break;
-          const float score = reverse_profile[static_cast<std::size_t>(d - d_min)];
-          if (score > best) best = score, best_left = left;
-        }
-      } else {
-        const Eigen::Vector3d line =
-            calibration->F.transpose() * Eigen::Vector3d(match.right.x(), match.right.y(), 1.0);
-        for (const Eigen::Vector2f& left : PixelsOnLine(line, left_grey.cols, left_grey.rows)) {
-          const float score = zncc.ReverseSimilarity(left, match.right);
-          if (score > best) best = score, best_left = left;
-        }
-      }
-      if (!(std::abs(best_left.x() - match.left.x()) <= refinement.left_right_tolerance_px &&
-            std::abs(best_left.y() - match.left.y()) <= refinement.left_right_tolerance_px + 0.5f)) {
-        return false;
-      }
+  if (refinement.left_right_check || (refinement.subpixel && rectified)) {
+    // The matcher's own similarity tables when they are the ones asked for (MatchStereo's, on
+    // the same pair), else built here.
+    if (!similarity || similarity->window() != matcher.zncc_window ||
+        !(similarity->data_term() == matcher.data_term) ||
+        similarity->right_width() != right_grey.cols) {
+      similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey, matcher.zncc_window,
+                                                       matcher.data_term);
     }
-    if (refinement.subpixel && rectified) {
-      // Parabola through ZNCC at x - 1, x, x + 1: vertex offset (c- - c+) / (2 (c- - 2 c0 + c+)).
-      const Eigen::Vector2f step(1.0f, 0.0f);
-      const Eigen::Vector2f right(std::round(match.right.x()), std::round(match.right.y()));
-      double before = 0.0, centre = 0.0, after = 0.0;
-      const float d = match.left.x() - right.x();
-      if (right.y() == match.left.y() && d == std::round(d) && std::abs(d) < 1e6f) {
-        // The three as one row profile (one set of support weights for the census term; the
-        // same values as pair by pair, vision/correlation.h): disparities d + 1, d, d - 1.
-        float three[3];
-        const int level = static_cast<int>(d);
-        zncc.RowProfile(match.left, level - 1, level + 1, three);
-        before = three[2], centre = three[1], after = three[0];
-      } else {
-        before = zncc(match.left, right - step);
-        centre = zncc(match.left, right);
-        after = zncc(match.left, right + step);
-      }
-      const double curvature = before - 2.0 * centre + after;
-      if (curvature < 0.0) {
-        const double offset = std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
-        if (std::abs(offset) >= refinement.subpixel_min_offset_px) {
-          match.right.x() = right.x() + static_cast<float>(offset);
-        }
-      }
-    }
-    return true;
-  };
-  cv::parallel_for_(cv::Range(0, static_cast<int>(matches.size())), [&](const cv::Range& range) {
-    std::vector<float> reverse_profile;
-    for (int i = range.start; i < range.end; ++i) {
-      const auto k = static_cast<std::size_t>(i);
-      keep[k] = refine(matches[k], reverse_profile) ? 1 : 0;
-    }
-  });
-  std::vector<StereoMatch> kept;
-  kept.reserve(matches.size());
-  for (std::size_t k = 0; k < matches.size(); ++k) {
-    if (keep[k]) kept.push_back(matches[k]);
+    const TableRefiner refiner{left_grey, calibration, *similarity, refinement, rectified,
+                               static_cast<int>(std::ceil(matcher.candidates.min_disparity)),
+                               static_cast<int>(std::floor(matcher.candidates.max_disparity))};
+    RefineOnTables(refiner, &report->matches);
   }
-  matches = std::move(kept);
-  refine_along_epipolar_lines();
+  if (along_epipolar_lines) {
+    RefineAllAlongEpipolarLines(left_grey, right_grey, calibration->F, matcher.zncc_window,
+                                refinement.epipolar_subpixel, &report->matches);
+  }
 }
 
 MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,

@@ -297,12 +297,11 @@ namespace {
 // The face's far end, cut off with the small groups: a plain top's outline breaks into pieces
 // where its edges are weak, and the pieces at its far end - two corners, each on the line of
 // one of the sides that reach it - are fewer points than min_top_group_fraction of the largest
-// (`--min-gap 0`, seed 69083: a 74 x 28 mm top seen as 62 mm long, its centre 6.1 mm off; the
-// corner groups held 12 and 10 points beside a chain of 135). A dropped group comes back when
+// (AFaceEndCutOffWithTheSmallGroupsComesBack). A dropped group comes back when
 // most of its points lie within `line_mm` of the line of a side of the kept points' rectangle,
 // beyond that rectangle's end, and the opposite side's line holds such a group beyond the same
 // end: a face's end has two corners, a stray chain at the top height (a neighbour's edge in
-// line with one side, seed 17136) has one. The two must reach equally far (within 3 mm): a
+// line with one side) has one. The two must reach equally far (within 3 mm): a
 // face's end is straight. Hand-written: no library fits this.
 std::vector<Eigen::Vector2d> RestoreFaceEnds(std::vector<Eigen::Vector2d> kept,
                                              const std::vector<std::vector<Eigen::Vector2d>>& groups,
@@ -356,6 +355,162 @@ std::vector<Eigen::Vector2d> RestoreFaceEnds(std::vector<Eigen::Vector2d> kept,
 
 }  // namespace
 
+namespace {
+
+// The top face's height (mm): the densest slab of heights (densest_slab_factor x top_layer_mm;
+// ties: the higher), then the median of the layer within top_layer_mm of it, twice. `top_xy`
+// receives the table-plane positions of that last layer's points.
+double TopFaceHeight(const std::vector<double>& heights, const std::vector<Eigen::Vector2d>& all_xy,
+                     const ObjectPoseOptions& options, std::vector<Eigen::Vector2d>* top_xy) {
+  std::vector<double> sorted = heights;
+  std::sort(sorted.begin(), sorted.end());
+  const double slab = options.densest_slab_factor * options.top_layer_mm;
+  std::size_t best_start = 0, best_count = 0;
+  for (std::size_t i = 0, j = 0; i < sorted.size(); ++i) {
+    j = std::max(j, i);
+    while (j + 1 < sorted.size() && sorted[j + 1] <= sorted[i] + slab) ++j;
+    if (j - i + 1 >= best_count) {
+      best_count = j - i + 1;
+      best_start = i;
+    }
+  }
+  double height = sorted[best_start + best_count / 2];
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<double> layer;
+    top_xy->clear();
+    for (std::size_t k = 0; k < heights.size(); ++k) {
+      if (std::abs(heights[k] - height) <= options.top_layer_mm) {
+        layer.push_back(heights[k]);
+        top_xy->push_back(all_xy[k]);
+      }
+    }
+    height = Quantile(layer, 0.5);  // layer holds at least the guess itself
+  }
+  return height;
+}
+
+// The top points without the small groups (linked within top_group_link_mm, union-find; fewer
+// than min_top_group_points or min_top_group_fraction of the largest): mismatches beyond an
+// edge that stretch the rectangle across it. Where leaving them out turns the rectangle by more
+// than max_trim_yaw_change_deg instead, they were the face's own corners and all are kept; a
+// group in line with a face's end is restored (RestoreFaceEnds).
+std::vector<Eigen::Vector2d> TrimSmallTopGroups(std::vector<Eigen::Vector2d> top_xy,
+                                                const ObjectPoseOptions& options) {
+  const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+  std::vector<std::size_t> parent(top_xy.size());
+  for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
+  const auto root = [&](std::size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (std::size_t a = 0; a < top_xy.size(); ++a) {
+    for (std::size_t b = a + 1; b < top_xy.size(); ++b) {
+      if ((top_xy[a] - top_xy[b]).squaredNorm() <= link_squared) parent[root(a)] = root(b);
+    }
+  }
+  std::vector<int> group_size(top_xy.size(), 0);
+  for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
+  const int largest = group_size.empty() ? 0 : *std::max_element(group_size.begin(), group_size.end());
+  const int min_group = std::max(options.min_top_group_points,
+                                 static_cast<int>(std::ceil(options.min_top_group_fraction * largest)));
+  std::vector<Eigen::Vector2d> kept;
+  std::map<std::size_t, std::vector<Eigen::Vector2d>> dropped;  // by group root
+  for (std::size_t a = 0; a < top_xy.size(); ++a) {
+    if (group_size[root(a)] >= min_group) {
+      kept.push_back(top_xy[a]);
+    } else {
+      dropped[root(a)].push_back(top_xy[a]);
+    }
+  }
+  if (!kept.empty() && kept.size() < top_xy.size() &&
+      std::abs(NormaliseAxisAngle(MinAreaRectangle(kept).yaw_deg -
+                                  MinAreaRectangle(top_xy).yaw_deg)) <=
+          options.max_trim_yaw_change_deg) {
+    std::vector<std::vector<Eigen::Vector2d>> groups;
+    for (auto& [group_root, group] : dropped) groups.push_back(std::move(group));
+    return RestoreFaceEnds(std::move(kept), groups, options.face_end_line_mm);
+  }
+  return top_xy;
+}
+
+// ObjectPose::top_fill: the area of the top points' convex hull (shoelace) over their
+// rectangle's; 0 for a rectangle of no area.
+double HullFill(const std::vector<Eigen::Vector2d>& top_hull, const Rectangle2D& rectangle) {
+  const double area = rectangle.length * rectangle.width;
+  if (!(area > 0.0)) return 0.0;
+  double hull_area = 0.0;
+  for (std::size_t i = 0; i < top_hull.size(); ++i) {
+    const Eigen::Vector2d& a = top_hull[i];
+    const Eigen::Vector2d& b = top_hull[(i + 1) % top_hull.size()];
+    hull_area += 0.5 * (a.x() * b.y() - a.y() * b.x());
+  }
+  return std::abs(hull_area) / area;
+}
+
+// The share of a circle's rim (10 degree bins) that top points within `band` (mm) of it cover;
+// `outside` receives the count of top points beyond the band outside the circle.
+double RimCoverage(const Circle2D& circle, const std::vector<Eigen::Vector2d>& top_xy, double band,
+                   std::size_t* outside) {
+  constexpr int kRimBins = 36;
+  std::vector<bool> rim_bin(kRimBins, false);
+  *outside = 0;
+  for (const auto& p : top_xy) {
+    const Eigen::Vector2d d = p - circle.centre;
+    const double radial = d.norm() - circle.radius;
+    if (radial > band) ++*outside;
+    if (std::abs(radial) > band) continue;
+    const double turn = (std::atan2(d.y(), d.x()) + std::numbers::pi) / (2.0 * std::numbers::pi);
+    rim_bin[std::min(kRimBins - 1, static_cast<int>(turn * kRimBins))] = true;
+  }
+  return static_cast<double>(std::count(rim_bin.begin(), rim_bin.end(), true)) / kRimBins;
+}
+
+// The circle of a round top, or none: the top's hull fits a circle (rms residual below
+// max_circle_residual x radius) whose rim the top points cover (min_rim_coverage) - the hull of
+// a long strip keeps its vertices near its corners, on the rectangle's circumscribed circle -
+// or, failing that, a robust fit holds min_circle_inlier_fraction of the hull with few points
+// outside it (max_outside_circle_fraction). Needs a hull of 12 vertices and 60 top points (a
+// fragment of a face can fit some circle by chance) and a top_fill up to max_round_top_fill.
+std::optional<Circle2D> RoundTopCircle(const std::vector<Eigen::Vector2d>& top_xy,
+                                       const std::vector<Eigen::Vector2d>& hull, double top_fill,
+                                       const ObjectPoseOptions& options) {
+  constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
+  constexpr std::size_t kMinCirclePoints = 60;
+  const bool enough = hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints &&
+                      !(top_fill > options.max_round_top_fill);
+  if (!enough) return std::nullopt;
+  double diameter = 0.0;
+  for (std::size_t a = 0; a < hull.size(); ++a) {
+    for (std::size_t b = a + 1; b < hull.size(); ++b) {
+      diameter = std::max(diameter, (hull[a] - hull[b]).norm());
+    }
+  }
+  const double band = std::max(options.circle_band_min_mm,
+                               options.circle_band_fraction * 0.5 * diameter);
+  std::size_t outside = 0;
+  if (const auto circle = FitCircle(hull);
+      circle && circle->rms_residual < options.max_circle_residual * circle->radius &&
+      RimCoverage(*circle, top_xy, band, &outside) >= options.min_rim_coverage) {
+    return circle;
+  }
+  if (!(options.min_circle_inlier_fraction > 0.0)) return std::nullopt;
+  int inliers = 0;
+  // No radius above the diameter: the visible part of a disc is at least a shallow cap.
+  if (const auto circle = FitCircleRobust(hull, band, diameter, &inliers);
+      circle && inliers >= options.min_circle_inlier_fraction * static_cast<double>(hull.size()) &&
+      circle->rms_residual < options.max_circle_residual * circle->radius) {
+    const double coverage = RimCoverage(*circle, top_xy, band, &outside);
+    if (coverage >= options.min_rim_coverage &&
+        static_cast<double>(outside) <=
+            options.max_outside_circle_fraction * static_cast<double>(top_xy.size())) {
+      return circle;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_world,
                               const std::vector<int>& indices, const ObjectPoseOptions& options) {
   if (const std::string problem = options.Check(); !problem.empty()) {
@@ -372,76 +527,11 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
     heights.push_back(p.z());
     all_xy.push_back(p.head<2>());
   }
-  // Top face: the densest slab of heights (ties: the higher), then the median of the layer
-  // around it, twice.
-  std::vector<double> sorted = heights;
-  std::sort(sorted.begin(), sorted.end());
-  const double slab = options.densest_slab_factor * options.top_layer_mm;
-  std::size_t best_start = 0, best_count = 0;
-  for (std::size_t i = 0, j = 0; i < sorted.size(); ++i) {
-    j = std::max(j, i);
-    while (j + 1 < sorted.size() && sorted[j + 1] <= sorted[i] + slab) ++j;
-    if (j - i + 1 >= best_count) {
-      best_count = j - i + 1;
-      best_start = i;
-    }
-  }
-  double height = sorted[best_start + best_count / 2];
   std::vector<Eigen::Vector2d> top_xy;
-  for (int pass = 0; pass < 2; ++pass) {
-    std::vector<double> layer;
-    top_xy.clear();
-    for (std::size_t k = 0; k < heights.size(); ++k) {
-      if (std::abs(heights[k] - height) <= options.top_layer_mm) {
-        layer.push_back(heights[k]);
-        top_xy.push_back(all_xy[k]);
-      }
-    }
-    height = Quantile(layer, 0.5);  // layer holds at least the guess itself
-  }
+  const double height = TopFaceHeight(heights, all_xy, options, &top_xy);
   pose.height_mm = height;
   pose.top_points = static_cast<int>(top_xy.size());
-  if (options.min_top_group_points > 1) {
-    // Groups of top points linked within top_group_link_mm (union-find); the small ones are
-    // mismatches and the outline is fitted without them.
-    const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
-    std::vector<std::size_t> parent(top_xy.size());
-    for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
-    const auto root = [&](std::size_t a) {
-      while (parent[a] != a) a = parent[a] = parent[parent[a]];
-      return a;
-    };
-    for (std::size_t a = 0; a < top_xy.size(); ++a) {
-      for (std::size_t b = a + 1; b < top_xy.size(); ++b) {
-        if ((top_xy[a] - top_xy[b]).squaredNorm() <= link_squared) parent[root(a)] = root(b);
-      }
-    }
-    std::vector<int> group_size(top_xy.size(), 0);
-    for (std::size_t a = 0; a < top_xy.size(); ++a) ++group_size[root(a)];
-    const int largest = group_size.empty() ? 0 : *std::max_element(group_size.begin(), group_size.end());
-    const int min_group = std::max(options.min_top_group_points,
-                                   static_cast<int>(std::ceil(options.min_top_group_fraction * largest)));
-    std::vector<Eigen::Vector2d> kept;
-    std::map<std::size_t, std::vector<Eigen::Vector2d>> dropped;  // by group root
-    for (std::size_t a = 0; a < top_xy.size(); ++a) {
-      if (group_size[root(a)] >= min_group) {
-        kept.push_back(top_xy[a]);
-      } else {
-        dropped[root(a)].push_back(top_xy[a]);
-      }
-    }
-    // Mismatches beyond an edge stretch the rectangle across it; where leaving them out turns
-    // the rectangle instead (a small, nearly square top whose corners are the small groups,
-    // seed 11054), they were the face's own corners.
-    if (!kept.empty() && kept.size() < top_xy.size() &&
-        std::abs(NormaliseAxisAngle(MinAreaRectangle(kept).yaw_deg -
-                                    MinAreaRectangle(top_xy).yaw_deg)) <=
-            options.max_trim_yaw_change_deg) {
-      std::vector<std::vector<Eigen::Vector2d>> groups;
-      for (auto& [group_root, group] : dropped) groups.push_back(std::move(group));
-      top_xy = RestoreFaceEnds(std::move(kept), groups, options.face_end_line_mm);
-    }
-  }
+  if (options.min_top_group_points > 1) top_xy = TrimSmallTopGroups(std::move(top_xy), options);
   pose.top_rectangle = MinAreaRectangle(top_xy);
 
   pose.yaw_moments_deg = YawFromCentralMoments(all_xy);
@@ -449,81 +539,16 @@ ObjectPose EstimateObjectPose(const std::vector<Eigen::Vector3d>& points_in_worl
                                                                      : pose.yaw_moments_deg;
   Eigen::Vector2d centre = pose.top_rectangle.centre;
   const std::vector<Eigen::Vector2d> top_hull = ConvexHull(top_xy);
-  if (const double area = pose.top_rectangle.length * pose.top_rectangle.width; area > 0.0) {
-    double hull_area = 0.0;  // shoelace
-    for (std::size_t i = 0; i < top_hull.size(); ++i) {
-      const Eigen::Vector2d& a = top_hull[i];
-      const Eigen::Vector2d& b = top_hull[(i + 1) % top_hull.size()];
-      hull_area += 0.5 * (a.x() * b.y() - a.y() * b.x());
-    }
-    pose.top_fill = std::abs(hull_area) / area;
-  }
+  pose.top_fill = HullFill(top_hull, pose.top_rectangle);
   if (top_hull.size() >= 5) {
     if (const auto circle = FitCircle(top_hull)) pose.top_roundness = circle->rms_residual / circle->radius;
   }
   if (options.max_circle_residual > 0.0) {
-    const std::vector<Eigen::Vector2d>& hull = top_hull;
-    constexpr std::size_t kMinHullVertices = 12;  // a rectangle's hull can have as few as 4
-    // A fragment of a face (a corner, a piece of an edge) can fit some circle by chance.
-    constexpr std::size_t kMinCirclePoints = 60;
-    const bool enough = hull.size() >= kMinHullVertices && top_xy.size() >= kMinCirclePoints &&
-                        !(pose.top_fill > options.max_round_top_fill);
-    double diameter = 0.0;
-    for (std::size_t a = 0; enough && a < hull.size(); ++a) {
-      for (std::size_t b = a + 1; b < hull.size(); ++b) {
-        diameter = std::max(diameter, (hull[a] - hull[b]).norm());
-      }
-    }
-    const double band = std::max(options.circle_band_min_mm,
-                                 options.circle_band_fraction * 0.5 * diameter);
-    // The share of the rim (10 degree bins) that top points within `band` of it cover, and the
-    // count of top points beyond the band outside the circle.
-    const auto rim_coverage = [&](const Circle2D& circle, std::size_t* outside) {
-      constexpr int kRimBins = 36;
-      std::vector<bool> rim_bin(kRimBins, false);
-      *outside = 0;
-      for (const auto& p : top_xy) {
-        const Eigen::Vector2d d = p - circle.centre;
-        const double radial = d.norm() - circle.radius;
-        if (radial > band) ++*outside;
-        if (std::abs(radial) > band) continue;
-        const double turn = (std::atan2(d.y(), d.x()) + std::numbers::pi) / (2.0 * std::numbers::pi);
-        rim_bin[std::min(kRimBins - 1, static_cast<int>(turn * kRimBins))] = true;
-      }
-      return static_cast<double>(std::count(rim_bin.begin(), rim_bin.end(), true)) / kRimBins;
-    };
-    if (enough) {
-      std::size_t outside = 0;
-      // The rim-coverage test holds here too: the hull of a long strip keeps its vertices at
-      // its two ends, near the corners, and those lie on the rectangle's circumscribed circle
-      // (seed 25025: a 158 x 22 mm strip at 15 mm "round" with a radius of 89 mm, an
-      // unflagged false part 41 mm from any part).
-      if (const auto circle = FitCircle(hull);
-          circle && circle->rms_residual < options.max_circle_residual * circle->radius &&
-          rim_coverage(*circle, &outside) >= options.min_rim_coverage) {
-        pose.round = true;
-        pose.circle_centre = circle->centre;
-        pose.circle_radius = circle->radius;
-        centre = circle->centre;
-      }
-    }
-    if (!pose.round && options.min_circle_inlier_fraction > 0.0 && enough) {
-      int inliers = 0;
-      // No radius above the diameter: the visible part of a disc is at least a shallow cap.
-      if (const auto circle = FitCircleRobust(hull, band, diameter, &inliers);
-          circle && inliers >= options.min_circle_inlier_fraction * static_cast<double>(hull.size()) &&
-          circle->rms_residual < options.max_circle_residual * circle->radius) {
-        std::size_t outside = 0;
-        const double coverage = rim_coverage(*circle, &outside);
-        if (coverage >= options.min_rim_coverage &&
-            static_cast<double>(outside) <=
-                options.max_outside_circle_fraction * static_cast<double>(top_xy.size())) {
-          pose.round = true;
-          pose.circle_centre = circle->centre;
-          pose.circle_radius = circle->radius;
-          centre = circle->centre;
-        }
-      }
+    if (const auto circle = RoundTopCircle(top_xy, top_hull, pose.top_fill, options)) {
+      pose.round = true;
+      pose.circle_centre = circle->centre;
+      pose.circle_radius = circle->radius;
+      centre = circle->centre;
     }
   }
   if (!options.centroid_from_rectangle) {
@@ -737,8 +762,7 @@ bool PiecesOutlineOneFace(const std::vector<Eigen::Vector2d>& first,
   // apart put their inner sides deep inside it.
   const Rectangle2D rectangle = MinAreaRectangle(joint);
   // Pieces in line outline a strip, no face: every piece lies on a thin rectangle's outline
-  // (seed 13124: a 35 mm line on a tall box's side and a piece of a cylinder's rim 162 mm
-  // away, at one height, made a 220 x 7.5 mm "face").
+  // (PiecesInLineOutlineNoFaceAndTheBaseEdgeIsNotHidden).
   if (options.min_edge_strip_aspect > 0.0 &&
       rectangle.length >= options.min_edge_strip_aspect * rectangle.width) {
     return false;
@@ -776,8 +800,7 @@ bool JoinAsOneFace(const std::vector<Eigen::Vector2d>& small, const std::vector<
       PiecesOutlineOneFace(small, large, options)) {
     return true;
   }
-  // Two parts whose own edges face each other never join (seed 100: a flat 74 x 61 mm box and a
-  // piece at its height 80 mm away outlined a 159 x 66 mm "face").
+  // Two parts whose own edges face each other never join, whatever they outline together.
   if (PiecesFaceEachOtherWithEdges(small, large, options)) return false;
   if (PiecesOutlineOneFace(small, large, options)) return true;
   if (gap_mm > options.max_top_face_gap_mm) {
@@ -832,8 +855,8 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
           joint = ConvexHull(joint);
           const double height = 0.5 * (poses[small].height_mm + poses[large].height_mm);
           // A round top face is complete when its hull fits a circle: a piece outside that
-          // circle belongs to something else - whichever of the two is round (seed 10099: a
-          // round 53 mm top, the smaller cluster, was joined with a box beside it).
+          // circle belongs to something else - whichever of the two is round
+          // (ARoundTopStaysApartFromABoxBesideIt).
           const auto outside_circle_of = [&](std::size_t round, std::size_t other) {
             return poses[round].round &&
                    std::any_of(top_hulls[other].begin(), top_hulls[other].end(),
@@ -870,6 +893,131 @@ std::vector<std::vector<int>> MergeTopFaceIslands(const std::vector<Eigen::Vecto
   return clusters;
 }
 
+namespace {
+
+// Otsu's threshold on sorted heights: the split (each side at least `min_count` values) with
+// the largest between-level variance k (n - k) (high - low)^2. score < 0: no split allowed.
+struct LevelSplit {
+  double score = -1.0;
+  double threshold = 0.0;   // mm, midway between the two heights either side of the split
+  double difference = 0.0;  // mm, the two levels' mean heights apart
+};
+
+LevelSplit OtsuSplit(const std::vector<double>& z, std::size_t min_count) {
+  const std::size_t n = z.size();
+  double total = 0.0;
+  for (double v : z) total += v;
+  LevelSplit best;
+  double below_sum = 0.0;
+  for (std::size_t k = 1; k < n; ++k) {
+    below_sum += z[k - 1];
+    if (k < std::max<std::size_t>(min_count, 1) || n - k < std::max<std::size_t>(min_count, 1)) continue;
+    const double low = below_sum / static_cast<double>(k);
+    const double high = (total - below_sum) / static_cast<double>(n - k);
+    const double score = static_cast<double>(k) * static_cast<double>(n - k) * (high - low) * (high - low);
+    if (score > best.score) {
+      best.score = score;
+      best.threshold = 0.5 * (z[k - 1] + z[k]);
+      best.difference = high - low;
+    }
+  }
+  return best;
+}
+
+// The level (0 low, 1 high) of each top point: its own by `threshold`, then that of most of
+// its neighbours within top_group_link_mm (itself included; a tie keeps its own).
+std::vector<int> SmoothedLevels(const std::vector<Eigen::Vector3d>& points_in_world,
+                                const std::vector<int>& top, double threshold,
+                                const ObjectPoseOptions& options) {
+  std::vector<int> level(top.size());
+  for (std::size_t a = 0; a < top.size(); ++a) {
+    level[a] = points_in_world[static_cast<std::size_t>(top[a])].z() >= threshold ? 1 : 0;
+  }
+  const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
+  std::vector<int> smoothed(top.size());
+  for (std::size_t a = 0; a < top.size(); ++a) {
+    int votes[2] = {0, 0};
+    const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+    for (std::size_t b = 0; b < top.size(); ++b) {
+      if ((points_in_world[static_cast<std::size_t>(top[b])].head<2>() - xy).squaredNorm() <= link_squared) {
+        ++votes[level[b]];
+      }
+    }
+    smoothed[a] = votes[1] > votes[0] ? 1 : votes[1] < votes[0] ? 0 : level[a];
+  }
+  return smoothed;
+}
+
+// Whether the two levels are parts: each holds min_count top points and their centres lie
+// min_top_level_separation x the top's length apart.
+bool LevelsApart(const std::vector<Eigen::Vector3d>& points_in_world, const std::vector<int>& top,
+                 const std::vector<int>& smoothed, std::size_t min_count, double top_length,
+                 const ObjectPoseOptions& options) {
+  Eigen::Vector2d centre[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+  std::size_t count[2] = {0, 0};
+  for (std::size_t a = 0; a < top.size(); ++a) {
+    centre[smoothed[a]] += points_in_world[static_cast<std::size_t>(top[a])].head<2>();
+    ++count[smoothed[a]];
+  }
+  return !(count[0] < std::max<std::size_t>(min_count, 1) || count[1] < std::max<std::size_t>(min_count, 1) ||
+           (centre[0] / static_cast<double>(count[0]) - centre[1] / static_cast<double>(count[1])).norm() <
+               options.min_top_level_separation * top_length);
+}
+
+// The cluster's points by level: the top points by theirs, the others (sides, the lower face's
+// rim below the layer) with their nearest top point's.
+void AssignLevels(const std::vector<Eigen::Vector3d>& points_in_world, const std::vector<int>& cluster,
+                  const std::vector<int>& top, const std::vector<int>& smoothed,
+                  std::vector<int> parts[2]) {
+  std::vector<int> level_of(points_in_world.size(), -1);
+  for (std::size_t a = 0; a < top.size(); ++a) level_of[static_cast<std::size_t>(top[a])] = smoothed[a];
+  for (int i : cluster) {
+    int chosen = level_of[static_cast<std::size_t>(i)];
+    if (chosen < 0) {
+      double nearest = std::numeric_limits<double>::infinity();
+      const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(i)].head<2>();
+      for (std::size_t a = 0; a < top.size(); ++a) {
+        const double d = (points_in_world[static_cast<std::size_t>(top[a])].head<2>() - xy).squaredNorm();
+        if (d < nearest) {
+          nearest = d;
+          chosen = smoothed[a];
+        }
+      }
+    }
+    parts[chosen].push_back(i);
+  }
+}
+
+// Splits one cluster whose top layer holds two levels at least min_top_level_difference_mm
+// apart (Otsu), each at least min_top_level_fraction of the layer, their centres apart: touching
+// parts of unequal height. Returns false (no split) otherwise.
+bool SplitCluster(const std::vector<Eigen::Vector3d>& points_in_world, const std::vector<int>& cluster,
+                  const ObjectPoseOptions& options, std::vector<int> parts[2]) {
+  const ObjectPose pose = EstimateObjectPose(points_in_world, cluster, options);
+  std::vector<int> top;
+  for (int i : cluster) {
+    if (std::abs(points_in_world[static_cast<std::size_t>(i)].z() - pose.height_mm) <=
+        options.top_layer_mm) {
+      top.push_back(i);
+    }
+  }
+  std::vector<double> z;
+  for (int i : top) z.push_back(points_in_world[static_cast<std::size_t>(i)].z());
+  std::sort(z.begin(), z.end());
+  const auto min_count = static_cast<std::size_t>(
+      std::ceil(options.min_top_level_fraction * static_cast<double>(z.size())));
+  const LevelSplit best = OtsuSplit(z, min_count);
+  if (best.score < 0.0 || best.difference < options.min_top_level_difference_mm) return false;
+  const std::vector<int> smoothed = SmoothedLevels(points_in_world, top, best.threshold, options);
+  if (!LevelsApart(points_in_world, top, smoothed, min_count, pose.top_rectangle.length, options)) {
+    return false;
+  }
+  AssignLevels(points_in_world, cluster, top, smoothed, parts);
+  return true;
+}
+
+}  // namespace
+
 std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>& points_in_world,
                                              std::vector<std::vector<int>> clusters,
                                              const ObjectPoseOptions& options, int* splits) {
@@ -878,89 +1026,10 @@ std::vector<std::vector<int>> SplitTopLevels(const std::vector<Eigen::Vector3d>&
     std::vector<std::vector<int>> out;
     for (auto& cluster : clusters) {
       if (cluster.empty()) continue;
-      const ObjectPose pose = EstimateObjectPose(points_in_world, cluster, options);
-      std::vector<int> top;
-      for (int i : cluster) {
-        if (std::abs(points_in_world[static_cast<std::size_t>(i)].z() - pose.height_mm) <=
-            options.top_layer_mm) {
-          top.push_back(i);
-        }
-      }
-      // Otsu's threshold on the layer's heights: the split with the largest between-level
-      // variance.
-      std::vector<double> z;
-      for (int i : top) z.push_back(points_in_world[static_cast<std::size_t>(i)].z());
-      std::sort(z.begin(), z.end());
-      const std::size_t n = z.size();
-      const auto min_count = static_cast<std::size_t>(
-          std::ceil(options.min_top_level_fraction * static_cast<double>(n)));
-      double total = 0.0;
-      for (double v : z) total += v;
-      double best_score = -1.0, threshold = 0.0, difference = 0.0, below_sum = 0.0;
-      for (std::size_t k = 1; k < n; ++k) {
-        below_sum += z[k - 1];
-        if (k < std::max<std::size_t>(min_count, 1) || n - k < std::max<std::size_t>(min_count, 1)) continue;
-        const double low = below_sum / static_cast<double>(k);
-        const double high = (total - below_sum) / static_cast<double>(n - k);
-        const double score = static_cast<double>(k) * static_cast<double>(n - k) * (high - low) * (high - low);
-        if (score > best_score) {
-          best_score = score;
-          threshold = 0.5 * (z[k - 1] + z[k]);
-          difference = high - low;
-        }
-      }
-      if (best_score < 0.0 || difference < options.min_top_level_difference_mm) {
-        out.push_back(std::move(cluster));
-        continue;
-      }
-      // Each top point takes the level of most of its neighbours (itself included).
-      std::vector<int> level(top.size());
-      for (std::size_t a = 0; a < top.size(); ++a) {
-        level[a] = points_in_world[static_cast<std::size_t>(top[a])].z() >= threshold ? 1 : 0;
-      }
-      const double link_squared = options.top_group_link_mm * options.top_group_link_mm;
-      std::vector<int> smoothed(top.size());
-      for (std::size_t a = 0; a < top.size(); ++a) {
-        int votes[2] = {0, 0};
-        const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(top[a])].head<2>();
-        for (std::size_t b = 0; b < top.size(); ++b) {
-          if ((points_in_world[static_cast<std::size_t>(top[b])].head<2>() - xy).squaredNorm() <= link_squared) {
-            ++votes[level[b]];
-          }
-        }
-        smoothed[a] = votes[1] > votes[0] ? 1 : votes[1] < votes[0] ? 0 : level[a];
-      }
-      Eigen::Vector2d centre[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
-      std::size_t count[2] = {0, 0};
-      for (std::size_t a = 0; a < top.size(); ++a) {
-        centre[smoothed[a]] += points_in_world[static_cast<std::size_t>(top[a])].head<2>();
-        ++count[smoothed[a]];
-      }
-      if (count[0] < std::max<std::size_t>(min_count, 1) || count[1] < std::max<std::size_t>(min_count, 1) ||
-          (centre[0] / static_cast<double>(count[0]) - centre[1] / static_cast<double>(count[1])).norm() <
-              options.min_top_level_separation * pose.top_rectangle.length) {
-        out.push_back(std::move(cluster));
-        continue;
-      }
-      // The other points (sides, the lower face's rim below the layer) go with their nearest top
-      // point.
       std::vector<int> parts[2];
-      std::vector<int> level_of(points_in_world.size(), -1);
-      for (std::size_t a = 0; a < top.size(); ++a) level_of[static_cast<std::size_t>(top[a])] = smoothed[a];
-      for (int i : cluster) {
-        int chosen = level_of[static_cast<std::size_t>(i)];
-        if (chosen < 0) {
-          double nearest = std::numeric_limits<double>::infinity();
-          const Eigen::Vector2d xy = points_in_world[static_cast<std::size_t>(i)].head<2>();
-          for (std::size_t a = 0; a < top.size(); ++a) {
-            const double d = (points_in_world[static_cast<std::size_t>(top[a])].head<2>() - xy).squaredNorm();
-            if (d < nearest) {
-              nearest = d;
-              chosen = smoothed[a];
-            }
-          }
-        }
-        parts[chosen].push_back(i);
+      if (!SplitCluster(points_in_world, cluster, options, parts)) {
+        out.push_back(std::move(cluster));
+        continue;
       }
       out.push_back(std::move(parts[0]));
       out.push_back(std::move(parts[1]));

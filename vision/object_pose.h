@@ -28,72 +28,59 @@ struct ObjectPoseOptions {
   /// First guess of the top height: the densest slab of this many times top_layer_mm in Z (the
   /// top face's outline and marks pile up at one height; side edges spread over all heights,
   /// mismatches scatter); the height is then the median Z of the top layer around it.
+  /// TopFaceHeightAndCentreIgnoreSidesAndStrayPoints.
   double densest_slab_factor = 1.0;
   /// Centroid: true = centre of the top face's minimum-area rectangle; false = the thesis's mean
   /// of all the cluster's points (x, y), at the top height.
   bool centroid_from_rectangle = true;
   YawMethod yaw_method = YawMethod::kMinAreaRectangle;
-  /// The top face's outline (rectangle, hull, circle) ignores top-layer points in groups of
-  /// fewer than this many (points linked within top_group_link_mm): a few mismatches at the top
-  /// height stretch the rectangle (seed 10147: one point 12 mm beyond a 72 x 43 mm box's top put
-  /// its centre 5.8 mm off; seed 12086: three points 10-12 mm out, 5.6 mm off); a face's outline
-  /// is one dense chain, its marks blobs inside it. 0 or 1 keeps every point.
+  /// The top face's outline (rectangle, hull, circle) ignores top-layer points in groups
+  /// (linked within top_group_link_mm) of fewer than this many: a few mismatches at the top
+  /// height stretch the rectangle, where a face's outline is one dense chain and its marks
+  /// blobs inside it. 0 or 1 keeps every point. ALoneTopPointDoesNotStretchTheRectangle.
   int min_top_group_points = 4;
   double top_group_link_mm = 5.0;
-  /// ... or of fewer than this fraction of the largest group's points: a chain of points at the
-  /// top height beyond the face (an edge of a neighbour's side at that height, seed 17136: 25
-  /// points up to 29 mm past a 64 x 46 mm box's end, its centre 13 mm off) is no piece of a face
-  /// whose outline is one chain of 300; a split face's pieces are of one size. 0 keeps them
-  /// (as does min_top_group_points 0 or 1).
+  /// ... or of fewer than this fraction of the largest group's points: a chain at the top
+  /// height beyond the face (a neighbour's side edge) is no piece of a face whose outline is
+  /// one long chain; a split face's pieces are of one size. 0 keeps them.
+  /// ASmallChainBeyondTheFaceDoesNotStretchTheRectangle.
   double min_top_group_fraction = 0.1;
   /// ... unless leaving them out turns the rectangle by more than this (degrees): mismatches
-  /// stretch it, a small nearly square top's own corners orient it (seed 11054: a 34 x 27 mm top
-  /// turned 73 degrees).
+  /// stretch it, but a small nearly square top's own corners orient it.
+  /// ASmallTopKeepsTheCornersThatOrientIt.
   double max_trim_yaw_change_deg = 10.0;
   /// ... and a left-out group comes back when most of its points lie within this distance (mm)
-  /// of the line of one of the kept points' rectangle's sides, beyond the rectangle's end, and
-  /// the opposite side's line holds such a group beyond the same end: the face's two far
-  /// corners, cut off where a plain top's outline breaks (`--min-gap 0`, seed 69083: a 74 x 28
-  /// mm top seen as 62 mm long, its centre 6.1 mm off). 0 never restores.
+  /// of the line of one of the kept rectangle's sides, beyond its end, and the opposite side's
+  /// line holds such a group beyond the same end: the face's two far corners, cut off where a
+  /// plain top's outline breaks. 0 never restores. AFaceEndCutOffWithTheSmallGroupsComesBack.
   double face_end_line_mm = 1.5;
-  /// Round tops: a circle is fitted to the vertices of the top face's convex hull; when their
-  /// RMS radial residual is below this fraction of the radius (a rectangle's corners and sides
-  /// are 10 % or more off any circle) the part is round and, with centroid_from_rectangle, its
-  /// centroid is the circle's centre. The hull of a partly hidden disc still has its vertices on
-  /// the circle, where the rectangle's centre shifts. Needs 8 hull vertices and 60 top points
-  /// (a fragment of a face can fit some circle by chance). 0 disables the fit.
+  /// Round tops: a circle fitted to the top's convex hull vertices with an RMS radial residual
+  /// below this fraction of its radius (a rectangle's corners and sides are 10 % or more off
+  /// any circle) makes the part round and, with centroid_from_rectangle, its centroid the
+  /// circle's centre, which stays put where a neighbour hides part of the disc. Needs 12 hull
+  /// vertices and 60 top points. 0 disables the fit. RoundTopCentreFromCircleFitWhenPartlyHidden.
   double max_circle_residual = 0.02;
-  /// Partly seen round tops: where a neighbour hides part of a disc or its rim finds no matches
-  /// along an arc, the hull closes the gap with a chord and keeps a few vertices inside the
-  /// circle (seeds 17030, 17058, 17162, 17181, 9013, 9026, 19011: 2-10 % residual over all
-  /// vertices, the rectangle's centre 4.7-12 mm off), yet most of its vertices still lie on the
-  /// rim. FitCircleRobust then finds that rim: the top is round when at least
-  /// min_circle_inlier_fraction of the hull vertices lie within the band of one circle (0
-  /// disables this second test) ...
+  /// Partly seen round tops: the hull closes a hidden arc with a chord and keeps a few vertices
+  /// inside the circle, yet most still lie on the rim, which FitCircleRobust finds: round when
+  /// at least this fraction of the hull vertices lie in one circle's band (0 disables this
+  /// second test) ... PartlySeenRoundTopWithPointsInsideItsRimIsRound.
   double min_circle_inlier_fraction = 0.7;
   /// ... the band being this fraction of half the hull's diameter, at least circle_band_min_mm
-  /// (the rim's points scatter about 0.5 mm in the default cell; a band relative to the radius
-  /// would let a huge circle pass through any piece of edge) ...
+  /// (the rim's points scatter about 0.5 mm; a band relative to the radius would let a huge
+  /// circle pass through any piece of edge) ...
   double circle_band_fraction = 0.03;
   double circle_band_min_mm = 0.5;
   /// ... the top points within that band cover at least this fraction of the rim (10 degree
   /// bins): a rectangle's corners lie on its circumscribed circle, but only short pieces of its
-  /// outline do (at most 0.25 of the rim on seeds 13000-13029 and 9000-9039, against at least
-  /// 0.39 for a partly seen disc). The whole-hull fit of max_circle_residual must pass this too
-  /// (seed 25025: a 158 x 22 mm strip whose hull vertices sat at its ends, near its corners,
-  /// fitted a circle of 89 mm radius to 2 %) ...
+  /// outline do. The whole-hull fit of max_circle_residual must pass this too.
+  /// AStripWhoseHullFitsACircleIsNotRound.
   double min_rim_coverage = 1.0 / 3.0;
   /// ... and at most this fraction of the top points lie beyond the band outside the circle:
-  /// a disc hides nothing outside its rim, where the union of a disc and a neighbour joined by
-  /// the clustering does (a few mismatches at the top height may).
+  /// a disc hides nothing outside its rim, where a disc joined with a neighbour does.
   double max_outside_circle_fraction = 0.02;
-  /// Neither fit makes a top round whose hull fills more than this fraction of its
-  /// minimum-area rectangle: a disc fills pi / 4 of its square and a disc cut by a chord at
-  /// most about 0.85 of its rectangle (0.80-0.90 measured, the hull of scattered rim points),
-  /// a rectangle all of it (0.95-0.99). On the stress logs 18 boxes were taken for round tops
-  /// with fills of 0.95-0.99, among them 70 x 28 mm tops whose ends lie on their circumscribed
-  /// circle (a round part is sent with yaw 0) and gap0 439006, a 73 x 59 mm box sent 4.1 mm
-  /// off from the circle's centre where its rectangle was 0.3 mm off.
+  /// Neither fit makes a top round whose hull fills more than this fraction of its minimum-area
+  /// rectangle: a disc fills pi / 4 of its square and a disc cut by a chord at most about 0.85
+  /// of its rectangle, a rectangle 0.95-0.99. ABoxTopThatFillsItsRectangleIsNoDisc.
   double max_round_top_fill = 0.93;
   /// MergeTopFaceIslands joins two pieces of one split top face when their outlines are at
   /// most this far apart (mm): the featureless middle of a textured top face. Further apart,
@@ -101,7 +88,7 @@ struct ObjectPoseOptions {
   /// shows only its outline, whatever its size.
   double max_top_face_gap_mm = 30.0;
   /// Join same-height pieces further apart than max_top_face_gap_mm when PiecesOutlineOneFace
-  /// says they outline one face (false: the rule before issue 12, for comparison).
+  /// says they outline one face (false: gap-only joins, for comparison).
   bool join_face_outlines = true;
   /// PiecesOutlineOneFace: a point is on the joint face's outline when it lies within this
   /// fraction of the joint rectangle's width (circle: of its radius), at least top_layer_mm, of
@@ -110,68 +97,58 @@ struct ObjectPoseOptions {
   /// ... and each piece needs this fraction of its top points on the outline ...
   double min_outline_fraction = 0.9;
   /// ... and must be a stretch of it, at least this fraction of the joint rectangle's width
-  /// long: a speck of a few points lies on the outline of any rectangle it spans (seed 10163: a
-  /// 3.5 x 3.0 mm speck joined a piece 140 mm away, and the 185 mm "face" swallowed two parts).
+  /// long: a speck of a few points lies on the outline of any rectangle it spans.
+  /// SpecksAndLineEndsOutlineNoFaceAndFaceNoEdge.
   double min_outline_piece_fraction = 0.25;
   /// Near pieces (within max_top_face_gap_mm) stay apart when each has an edge facing the other
   /// (PiecesFaceEachOtherWithEdges): points within this distance (mm) of the facing side ...
   double facing_edge_band_mm = 2.0;
-  /// ... covering at least this fraction of its length (1 mm bins). Seed 5022: two 122 mm tall
-  /// boxes 15+ mm apart hid the table between them and were joined into one part between them.
+  /// ... covering at least this fraction of its length (1 mm bins): two tall boxes may hide the
+  /// table between them. TwoTallPartsHidingTheTableBetweenThemStayTwo.
   double min_facing_edge_coverage = 0.6;
   /// ... on a facing side at least this long (mm) when the other piece is a line or a speck
   /// too (at most max_thin_piece_width_mm wide): a thin piece seen end-on, or a speck, faces
-  /// another such with no edge (seed 10188: two pieces of one 74 mm edge, 17 mm apart in line,
-  /// "faced each other" with their 0.5 mm ends and stayed apart; seed 10179: a 2.8 mm speck kept
-  /// a plain face's edge from the rest of it). A line pointing end-on at a whole face is no
-  /// piece of it and still faces it (seed 11088: a 24 mm line 11 mm from a 44 x 31 mm box).
+  /// another such with no edge; a line pointing end-on at a whole face is no piece of it and
+  /// still faces it. SpecksAndLineEndsOutlineNoFaceAndFaceNoEdge.
   double min_facing_side_mm = 5.0;
   double max_thin_piece_width_mm = 6.0;
   /// Two edge strips - pieces at least this many times as long as wide - that are opposite ends
-  /// of one face (PiecesAreOppositeEndsOfOneFace) and outline it together (PiecesOutlineOneFace)
-  /// join even though they face each other with full sides: a plain top face under noise and
-  /// blur often shows only its two strong edges, and those face each other just as two parts'
-  /// own edges do. No part's top face is such a strip (render draws them at most 3:1; the
-  /// hard-profile seeds 6003, 6010, 6011 and 6016 lost their boxes to the facing-edge veto).
-  /// Likewise a joint rectangle that is such a strip outlines no face (PiecesOutlineOneFace):
-  /// pieces in line lie on the outline of their thin joint rectangle (seed 13124: 220 x 7.5 mm).
-  /// 0 disables both.
+  /// of one face (PiecesAreOppositeEndsOfOneFace) and outline it together join even though they
+  /// face each other with full sides: a plain top face under noise and blur often shows only
+  /// its two strong edges. No part's top is such a strip (render draws them at most 3:1), and a
+  /// joint rectangle that is one outlines no face (pieces in line). 0 disables both.
+  /// TwoEdgeStripsOfOnePlainFaceJoinTwoFacesDoNot, PiecesInLineOutlineNoFaceAndTheBaseEdgeIsNotHidden.
   double min_edge_strip_aspect = 6.0;
   /// PiecesAreOppositeEndsOfOneFace: the pieces' rectangles are parallel within this (degrees)
   /// ...
   double max_end_yaw_difference_deg = 5.0;
   /// ... their lengths differ by at most this fraction, and they are shifted along their long
-  /// axis by at most this fraction of it. Seed 5064: a 68 x 49 mm textured top came out as its
-  /// two 49 mm ends (48.4 x 21.9 and 47.9 x 16.3 mm pieces) 68 mm apart.
+  /// axis by at most this fraction of it. ATopFaceSeenAsItsTwoEndsIsOnePart.
   double max_end_length_difference = 0.15;
   /// ... and when their top heights differ by at most this (mm): the pieces of one face agree to
-  /// a millimetre (seeds 100-119: at most 0.9 mm), two parts may differ by anything.
+  /// a millimetre, two parts may differ by anything.
   double max_split_height_difference_mm = 2.0;
   /// ... and when the points at other heights inside their joint top face (mismatches on the
   /// face's texture) are at most this fraction of their points: a gap between two parts shows
-  /// the dusty table, dense with points.
+  /// the dusty table, dense with points. SplitTopFaceJoinsUnlessTheTableShowsBetween.
   double max_hidden_fraction = 0.08;
   /// ... counting no point within this distance (mm) of their joint outline: the part's own
-  /// sides and base edge lie under its top face's outline (seen there up to a few mm inside it
-  /// through the calibration), and are not hidden by the face. Hard profile, seed 6080: the
-  /// base edge of a 75 x 52 mm plain box, 80 mm tall, 1-3 mm inside its outline, gave 23 of
-  /// the 28 "hidden" points that kept its two halves apart (a false part, the pose 18 mm off).
-  /// 0 counts them all.
+  /// sides and base edge lie under its top face's outline (up to a few mm inside it through
+  /// the calibration) and are not hidden by the face. 0 counts them all.
+  /// PiecesInLineOutlineNoFaceAndTheBaseEdgeIsNotHidden.
   double hidden_margin_mm = 3.0;
   /// ... and when at most this many points are seen in the gap between the two pieces (inside
   /// their joint top face, outside both pieces' own tops, more than 2 top layers off its
-  /// height): a count, not a fraction, since the table seen between two parts 15 mm apart does
-  /// not grow with the parts, where a split face hides it (seeds 10080, 10192, 11006: two boxes
-  /// of equal height joined into one part between them; 10013 in part).
+  /// height): a count, not a fraction, since the table seen between two parts does not grow
+  /// with the parts. SplitTopFaceStaysApartWhenAFewPointsShowInTheGap.
   int max_gap_points = 3;
   /// ... counting no point within this distance (mm) of the joint outline (a part's sides and
   /// base edge lie under its top face's outline).
   double gap_margin_mm = 3.0;
   /// SplitTopLevels: a cluster whose top layer holds two heights is two touching parts the
-  /// clustering joined (`--min-gap 0`, seed 9034: two cylinders 71 and 66 mm tall reported as one
-  /// part at 68.6 mm between them, 32 mm from either). The layer's heights split in two (Otsu)
-  /// whose means differ by at least this (mm); one face's points agree to about a millimetre
-  /// (height p99 0.6 mm). 0 disables the split.
+  /// clustering joined. The layer's heights split in two (Otsu) whose means differ by at least
+  /// this (mm); one face's points agree to about a millimetre. 0 disables the split.
+  /// SplitTopLevelsSeparatesTouchingPartsOfUnequalHeight.
   double min_top_level_difference_mm = 3.0;
   /// ... each level holding at least this fraction of the layer's points (a part's upper sides
   /// in the layer are a few) ...

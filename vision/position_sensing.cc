@@ -31,8 +31,7 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 // table), that lie within `reach_mm` of its top face's rectangle in the table plane, or that
 // stand more than `top_layer_mm` above its top and whose ray from either camera centre crosses
 // the plane of its top within `reach_mm` of that rectangle: a taller neighbour that hides part
-// of the top from a camera (`--min-gap 0`, seed 19027: a 61 x 35 mm box seen as 47 x 30, its
-// centre 7.5 mm off, the neighbours' points 12 mm or more from the cut rectangle).
+// of the top from a camera cuts the rectangle short of the neighbour's points.
 // ObjectPose::taller_touching_points: those of the former (within `reach_mm` in the table
 // plane) that stand more than `top_layer_mm` above its top.
 void CountTouchingPoints(const std::vector<Eigen::Vector3d>& points, const std::vector<bool>& weak,
@@ -259,15 +258,11 @@ MatcherOptions PickCellMatcherOptions() {
   // CellSensingFlags start from these options.
   options.energy.objective = hnn::Objective::kGeometrySimilarity;
   // The dusty table gives thousands of edge points that all lie at z = 0; the cap (kept spread
-  // over the image) bounds the all-pairs epipolar gating, which dominates the time: 8000
-  // features per image took 3.8 s of gating, 4000 take 0.8 s (seed 3, this machine).
+  // over the image) bounds the epipolar gating, which dominates the time.
   options.features.max_features = 4000;
   // hnn-default's stop rule (docs/engine.md): the run ends when every row's decision has
-  // settled (checked every 2 steps, twice in a row), not when the energy has. On the stress
-  // development ranges (docs/sensing.md) it sensed as the energy rule did - no far
-  // unflagged pose either way, recall equal on default and hard, 3 of 2,500 gap0 parts lost
-  // - and `pick` on render seed 100 matched in 87 ms (median of 7 new processes) against
-  // 108 ms.
+  // settled (checked every 2 steps, twice in a row), not when the energy has: on the stress
+  // scenes it senses as the energy rule does, in less time (docs/sensing.md).
   options.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
   options.dynamics.energy_interval = 2;
   options.dynamics.stable_checks = 2;
@@ -326,6 +321,373 @@ std::string PositionSensingOptions::Check() const {
   return pose.Check();
 }
 
+namespace {
+
+// The left image's 3 x 3 Sobel gradients, taken once, when the first stage needs them (the
+// edge-angle test, the island joins' image veto, the image fit).
+struct LeftGradients {
+  const cv::Mat& grey;
+  cv::Mat x, y;
+
+  void Need() {
+    if (x.empty()) {
+      cv::Sobel(grey, x, CV_32F, 1, 0, 3);
+      cv::Sobel(grey, y, CV_32F, 0, 1, 3);
+    }
+  }
+};
+
+// Whether the left image's edge at a match runs within asin(min_sine) of its epipolar line:
+// sin(angle between edge and line) = |gradient . line direction| / |gradient|, with the left
+// epipolar line of the right point l1 = F^T x2 (H&Z 9.2). Such a match's depth is uncertain
+// along the edge (PositionSensingOptions::min_edge_epipolar_angle_deg).
+bool EdgeAlongEpipolar(const StereoMatch& stereo_match, const LeftGradients& gradients,
+                       const Eigen::Matrix3d& F, double min_sine) {
+  const cv::Mat& grey = gradients.grey;
+  const int u = std::clamp(static_cast<int>(std::lround(stereo_match.left.x())), 0, grey.cols - 1);
+  const int v = std::clamp(static_cast<int>(std::lround(stereo_match.left.y())), 0, grey.rows - 1);
+  const Eigen::Vector2d gradient(gradients.x.at<float>(v, u), gradients.y.at<float>(v, u));
+  const Eigen::Vector3d line = F.transpose() * stereo_match.right.cast<double>().homogeneous();
+  const Eigen::Vector2d direction = Eigen::Vector2d(line.y(), -line.x()).normalized();
+  return gradient.norm() > 0.0 && direction.allFinite() &&
+         std::abs(gradient.dot(direction)) < min_sine * gradient.norm();
+}
+
+// Stage 1: linear triangulation of every match from both P (thesis 6.2.9); rejects degenerate,
+// behind-camera and large-residual points and marks the weak ones (edge along the epipolar line).
+void TriangulateMatches(const calib::StereoCalibration& calibration,
+                        const PositionSensingOptions& options, LeftGradients* gradients,
+                        PositionSensingReport* report) {
+  double residual_sum = 0.0;
+  const bool test_edges = options.min_edge_epipolar_angle_deg > 0.0 && !gradients->grey.empty();
+  if (test_edges) gradients->Need();
+  const double min_sine = std::sin(options.min_edge_epipolar_angle_deg * std::numbers::pi / 180.0);
+  for (std::size_t m = 0; m < report->match.matches.size(); ++m) {
+    const StereoMatch& stereo_match = report->match.matches[m];
+    const bool weak = test_edges && EdgeAlongEpipolar(stereo_match, *gradients, calibration.F, min_sine);
+    const auto point = TriangulateLinear(calibration.P1, calibration.P2,
+                                         stereo_match.left.cast<double>(),
+                                         stereo_match.right.cast<double>());
+    if (!point) {
+      ++report->triangulation.degenerate;
+    } else if (!point->in_front) {
+      ++report->triangulation.behind_camera;
+    } else if (!(point->reprojection_error_px <= options.max_reprojection_error_px)) {
+      ++report->triangulation.large_residual;
+    } else {
+      report->points_in_world.push_back(point->point_in_world);
+      report->match_of_point.push_back(static_cast<int>(m));
+      report->reprojection_error_px.push_back(point->reprojection_error_px);
+      report->weak.push_back(weak);
+      if (weak) ++report->triangulation.edge_along_epipolar;
+      residual_sum += point->reprojection_error_px;
+    }
+  }
+  report->triangulation.accepted = static_cast<int>(report->points_in_world.size());
+  if (report->triangulation.accepted > 0) {
+    report->triangulation.mean_residual_px = residual_sum / report->triangulation.accepted;
+  }
+}
+
+// The pose options of the clustering method: the thesis's leader clustering takes the centroid
+// as the cluster's mean and the yaw from central moments.
+ObjectPoseOptions PoseOptionsFor(const PositionSensingOptions& options) {
+  ObjectPoseOptions pose_options = options.pose;
+  if (options.clustering == ClusteringMethod::kThesisLeader) {
+    pose_options.centroid_from_rectangle = false;
+    pose_options.yaw_method = YawMethod::kCentralMoments;
+  }
+  return pose_options;
+}
+
+// Poses come from the strong points only (weak ones joined the clustering): a cluster with at
+// least min(10, size) strong points drops its weak ones (labelled -1).
+void KeepStrongPoints(PositionSensingReport* report) {
+  for (auto& cluster : report->clustering.clusters) {
+    std::vector<int> strong;
+    for (int i : cluster) {
+      if (!report->weak[static_cast<std::size_t>(i)]) strong.push_back(i);
+    }
+    if (static_cast<int>(strong.size()) >= std::min<int>(10, static_cast<int>(cluster.size()))) {
+      for (int i : cluster) {
+        if (report->weak[static_cast<std::size_t>(i)]) report->clustering.labels[static_cast<std::size_t>(i)] = -1;
+      }
+      cluster = std::move(strong);
+    }
+  }
+}
+
+// The veto on joining two top-face islands (MergeTopFaceIslands' PiecesSeenApart): two pieces
+// whose joint top would be longer than any part are two parts (`too_long`), and so are two
+// pieces the left image shows an edge between along their sides but not across their ends
+// (`look`, LookAcrossGap).
+struct IslandsSeenApart {
+  const PositionSensingOptions& options;
+  const calib::ProjectionMatrix& P1;
+  const LeftGradients& gradients;
+  bool look = false;
+  bool too_long = false;
+
+  bool operator()(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b,
+                  double height) const {
+    if (too_long) {
+      std::vector<Eigen::Vector2d> joint = a;
+      joint.insert(joint.end(), b.begin(), b.end());
+      if (MinAreaRectangle(joint).length > options.max_whole_top_length_mm) return true;
+    }
+    if (!look) return false;
+    const std::optional<GapBetweenPieces> gap =
+        LookAcrossGap(a, b, height, P1, gradients.x, gradients.y, options.top_edges);
+    return gap && gap->sides_support < options.top_edges.min_side_support &&
+           gap->ends_support >= options.top_edges.min_end_support;
+  }
+};
+
+// Stage 3 (grid clustering only): joins the islands of one top face, splits touching parts of
+// unequal height the grid joined (never a pose between them), and relabels the points.
+void RefineGridClusters(const calib::StereoCalibration& calibration,
+                        const PositionSensingOptions& options, const ObjectPoseOptions& pose_options,
+                        LeftGradients* gradients, PositionSensingReport* report) {
+  if (options.merge_top_face_islands) {
+    PiecesSeenApart seen_apart = nullptr;
+    const bool look = options.join_islands_seen_as_one_face && !gradients->grey.empty();
+    const bool too_long =
+        options.keep_apart_longer_than_any_part && options.max_whole_top_length_mm > 0.0;
+    if (look) gradients->Need();
+    if (look || too_long) {
+      seen_apart = IslandsSeenApart{options, calibration.P1, *gradients, look, too_long};
+    }
+    report->clustering.clusters =
+        MergeTopFaceIslands(report->points_in_world, report->clustering.clusters, pose_options,
+                            &report->island_merges, &report->weak, seen_apart);
+  }
+  report->clustering.clusters = SplitTopLevels(report->points_in_world, report->clustering.clusters,
+                                               pose_options, &report->top_level_splits);
+  std::fill(report->clustering.labels.begin(), report->clustering.labels.end(), -1);
+  for (std::size_t c = 0; c < report->clustering.clusters.size(); ++c) {
+    for (int i : report->clustering.clusters[c]) {
+      report->clustering.labels[static_cast<std::size_t>(i)] = static_cast<int>(c);
+    }
+  }
+}
+
+// Stage 4: drops clusters too small, without a top face, narrower than min_top_width_mm, or a
+// line across parts (longer than any part, narrower than any). A small cluster is kept for now
+// when it may be a whole top face (dropped later if flagged); the counts are of clusters at
+// least min_strong_points strong. Returns the poses of the narrow pieces dropped (for
+// piece_left_out).
+std::vector<ObjectPose> DropSmallClusters(const PositionSensingOptions& options,
+                                          const ObjectPoseOptions& pose_options,
+                                          PositionSensingReport* report) {
+  std::vector<ObjectPose> narrow_pieces;
+  std::erase_if(report->clustering.clusters, [&](const std::vector<int>& cluster) {
+    const bool below = static_cast<int>(cluster.size()) < options.min_strong_points;
+    bool small = below && !(options.min_strong_points_whole_top > 0 &&
+                            static_cast<int>(cluster.size()) >= options.min_strong_points_whole_top);
+    if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
+      ObjectPose pose = EstimateObjectPose(report->points_in_world, cluster, pose_options);
+      if (pose.top_points < options.min_top_fraction * pose.points) {
+        small = true;
+        if (!below) ++report->without_top_face;
+      } else if (pose.top_rectangle.width < options.min_top_width_mm) {
+        small = true;
+        if (!below) {
+          ++report->narrow_top_face;
+          narrow_pieces.push_back(std::move(pose));
+        }
+      } else if (options.max_whole_top_length_mm > 0.0 &&
+                 pose.top_rectangle.length > options.max_whole_top_length_mm &&
+                 pose.top_rectangle.width < options.min_whole_top_width_mm) {
+        small = true;
+        if (!below) ++report->narrow_top_face;
+      }
+    }
+    if (small) {
+      report->clustering.n_in_small_clusters += static_cast<int>(cluster.size());
+      for (int i : cluster) report->clustering.labels[static_cast<std::size_t>(i)] = -1;
+    }
+    return small;
+  });
+  return narrow_pieces;
+}
+
+// Sets ObjectPose::merged from the pose's own shape and its neighbours' points: a partial or
+// joined top (fill, roundness), a neighbour's points beside it, a taller part beside it, a
+// sliver, a top longer than any part, a left-out narrow piece at its height beside it, a top
+// cut by the field of view (PositionSensingOptions documents each threshold).
+void FlagPose(const calib::StereoCalibration& calibration, const PositionSensingOptions& options,
+              const ObjectPoseOptions& pose_options, const cv::Mat& left_grey,
+              const std::vector<ObjectPose>& narrow_pieces, ObjectPose* pose_out) {
+  ObjectPose& pose = *pose_out;
+  // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
+  pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
+                (pose.top_roundness > options.max_round_top_roundness ||
+                 pose.top_fill < options.min_round_top_fill);
+  // Beside a neighbour, only a full rectangle (or a round top) is trusted.
+  const bool touching =
+      pose.touching_points >= options.touch_min_points ||
+      (options.min_points_above_top > 0 && pose.points_above_top >= options.min_points_above_top);
+  if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
+    pose.merged = true;
+  }
+  // A taller part touching a box hides a strip of its top from the camera on its side; cut
+  // straight, the rest is still a full rectangle.
+  if (!pose.round && options.min_taller_touching_points > 0 &&
+      pose.taller_touching_points >= options.min_taller_touching_points) {
+    pose.merged = true;
+  }
+  // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
+  if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
+    pose.merged = true;
+  }
+  // A top longer than any part is parts joined.
+  if (options.max_whole_top_length_mm > 0.0 &&
+      pose.top_rectangle.length > options.max_whole_top_length_mm) {
+    pose.merged = true;
+  }
+  // A line of points at this top's height beside it, left out as too narrow to be a part,
+  // may be a piece of this top the island merge did not join.
+  for (const ObjectPose& piece : narrow_pieces) {
+    if (options.left_out_piece_reach_mm > 0.0 &&
+        std::abs(piece.height_mm - pose.height_mm) <= pose_options.top_layer_mm &&
+        RectangleGap(piece.top_rectangle, pose.top_rectangle) <= options.left_out_piece_reach_mm) {
+      pose.piece_left_out = true;
+      pose.merged = true;
+    }
+  }
+  // A top cut by the field of view is a piece of a face.
+  if (options.image_border_px > 0.0 && !left_grey.empty()) {
+    pose.at_image_border =
+        OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
+    if (pose.at_image_border) pose.merged = true;
+  }
+}
+
+// A sliver reported at a top's height beside it (flagged as narrower than any part) may be a
+// piece of that top the island merge did not join, as a left-out line is: flags the top.
+void FlagTopsBesideSlivers(const PositionSensingOptions& options,
+                           const ObjectPoseOptions& pose_options, PositionSensingReport* report) {
+  for (std::size_t a = 0; options.flag_tops_beside_slivers && a < report->objects.size(); ++a) {
+    ObjectPose& pose = report->objects[a];
+    if (pose.merged) continue;
+    for (std::size_t b = 0; b < report->objects.size(); ++b) {
+      const ObjectPose& piece = report->objects[b];
+      if (b == a || piece.round || piece.top_rectangle.width >= options.min_whole_top_width_mm ||
+          std::abs(piece.height_mm - pose.height_mm) > pose_options.max_split_height_difference_mm ||
+          RectangleGap(piece.top_rectangle, TopFootprint(pose)) > options.left_out_piece_reach_mm) {
+        continue;
+      }
+      pose.piece_left_out = true;
+      pose.merged = true;
+      ++report->merged;
+      break;
+    }
+  }
+}
+
+// Fits each box top to the left image's edges (ExtendTopToImageEdges, TurnTopToImageEdges),
+// keeping out of the other parts' tops (a round one as its circle's square); flags a top with a
+// side the fit could not place when flag_unplaced_sides.
+void FitTopsToImageEdges(const calib::StereoCalibration& calibration,
+                         const PositionSensingOptions& options,
+                         const ObjectPoseOptions& pose_options, const LeftGradients& gradients,
+                         PositionSensingReport* report) {
+  const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
+                                                       calib::CameraCentre(calibration.P2)};
+  for (std::size_t a = 0; a < report->objects.size(); ++a) {
+    std::vector<Rectangle2D> others;
+    for (std::size_t b = 0; b < report->objects.size(); ++b) {
+      if (b == a) continue;
+      others.push_back(TopFootprint(report->objects[b]));
+    }
+    const double max_length = options.max_whole_top_length_mm > 0.0
+                                  ? options.max_whole_top_length_mm
+                                  : std::numeric_limits<double>::infinity();
+    const TopFaceEdgeReport extension = ExtendTopToImageEdges(
+        &report->objects[a],
+        {calibration.P1, gradients.x, gradients.y, others, report->points_in_world, report->weak,
+         camera_centres, pose_options.top_layer_mm, max_length,
+         pose_options.centroid_from_rectangle},
+        options.top_edges);
+    report->objects[a].image_edge_moved_mm = extension.moved_mm();
+    TurnTopToImageEdges(&report->objects[a], calibration.P1, gradients.x, gradients.y,
+                        pose_options.yaw_method == YawMethod::kMinAreaRectangle, options.top_edges);
+    report->objects[a].unplaced_sides = extension.unplaced_sides;
+    if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report->objects[a].merged) {
+      report->objects[a].merged = true;
+      ++report->merged;
+    }
+  }
+}
+
+// Flags a box whose top has an empty strip between a side and a taller part (the taller part's
+// shadow may hide the rest of its top; EmptyStripToTallerPart).
+void FlagShadowStrips(const PositionSensingOptions& options, const ObjectPoseOptions& pose_options,
+                      PositionSensingReport* report) {
+  for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report->objects.size(); ++a) {
+    ObjectPose& pose = report->objects[a];
+    if (pose.round) continue;
+    pose.shadow_strip_mm = EmptyStripToTallerPart(
+        report->objects, a, report->points_in_world, report->weak, pose_options.top_layer_mm,
+        options.shadow_strip_reach_mm, options.max_shadow_strip_points);
+    if (pose.shadow_strip_mm > 0.0 && !pose.merged) {
+      pose.merged = true;
+      ++report->merged;
+    }
+  }
+}
+
+// Drops every flagged part below min_strong_points (its points become small-cluster points).
+// Returns whether any was dropped, so that the poses are estimated again without it.
+bool DropFlaggedSmallParts(const PositionSensingOptions& options, PositionSensingReport* report) {
+  bool dropped = false;
+  for (const ObjectPose& pose : report->objects) {
+    if (pose.points >= options.min_strong_points || !pose.merged) continue;
+    ++report->small_flagged;
+    report->clustering.n_in_small_clusters += pose.points;
+    for (int i : pose.point_indices) report->clustering.labels[static_cast<std::size_t>(i)] = -1;
+    std::erase_if(report->clustering.clusters, [&](const std::vector<int>& cluster) {
+      return !cluster.empty() && !pose.point_indices.empty() &&
+             cluster.front() == pose.point_indices.front();
+    });
+    dropped = true;
+  }
+  return dropped;
+}
+
+// Stage 5: the poses and their flags. A part below min_strong_points is reported only when no
+// check flags it; one that is flagged is dropped and the poses are estimated again without it,
+// so that its points flag no neighbour (touching points, the image fit's blocking).
+void EstimateAndFlagPoses(const calib::StereoCalibration& calibration,
+                          const PositionSensingOptions& options,
+                          const ObjectPoseOptions& pose_options,
+                          const std::vector<ObjectPose>& narrow_pieces, LeftGradients* gradients,
+                          PositionSensingReport* report) {
+  const cv::Mat& left_grey = gradients->grey;
+  for (bool again = true; again;) {
+    report->merged = 0;
+    report->objects =
+        EstimateObjectPoses(report->points_in_world, report->clustering.clusters, pose_options);
+    CountTouchingPoints(report->points_in_world, report->weak,
+                        {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
+                        options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
+                        &report->objects);
+    for (ObjectPose& pose : report->objects) {
+      FlagPose(calibration, options, pose_options, left_grey, narrow_pieces, &pose);
+      if (pose.merged) ++report->merged;
+    }
+    FlagTopsBesideSlivers(options, pose_options, report);
+    if (options.extend_tops_to_image_edges && !left_grey.empty()) {
+      gradients->Need();
+      FitTopsToImageEdges(calibration, options, pose_options, *gradients, report);
+    }
+    FlagShadowStrips(options, pose_options, report);
+    again = DropFlaggedSmallParts(options, report);
+  }
+}
+
+}  // namespace
+
 PositionSensingReport SensePositionsFromMatches(MatchReport match,
                                                 const calib::StereoCalibration& calibration,
                                                 const PositionSensingOptions& options,
@@ -339,61 +701,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   PositionSensingReport report;
   report.match = std::move(match);
   report.timing_ms.match = report.match.timing_ms.total;
+  LeftGradients gradients{left_grey, {}, {}};
 
-  // Linear triangulation from both P (thesis 6.2.9), then rejection.
   auto start = std::chrono::steady_clock::now();
-  double residual_sum = 0.0;
-  // The left image's 3 x 3 Sobel gradients, taken once, when the first stage needs them (the
-  // edge-angle test, the island joins' image veto, the image fit).
-  cv::Mat gradient_x, gradient_y;
-  const auto need_gradients = [&] {
-    if (gradient_x.empty()) {
-      cv::Sobel(left_grey, gradient_x, CV_32F, 1, 0, 3);
-      cv::Sobel(left_grey, gradient_y, CV_32F, 0, 1, 3);
-    }
-  };
-  const bool test_edges = options.min_edge_epipolar_angle_deg > 0.0 && !left_grey.empty();
-  if (test_edges) need_gradients();
-  const double min_sine = std::sin(options.min_edge_epipolar_angle_deg * std::numbers::pi / 180.0);
-  for (std::size_t m = 0; m < report.match.matches.size(); ++m) {
-    const StereoMatch& stereo_match = report.match.matches[m];
-    bool weak = false;
-    if (test_edges) {
-      // sin(angle between edge and epipolar line) = |gradient . line direction| / |gradient|;
-      // the left epipolar line of the right point is l1 = F^T x2 (H&Z 9.2).
-      const int u = std::clamp(static_cast<int>(std::lround(stereo_match.left.x())), 0, left_grey.cols - 1);
-      const int v = std::clamp(static_cast<int>(std::lround(stereo_match.left.y())), 0, left_grey.rows - 1);
-      const Eigen::Vector2d gradient(gradient_x.at<float>(v, u), gradient_y.at<float>(v, u));
-      const Eigen::Vector3d line =
-          calibration.F.transpose() * stereo_match.right.cast<double>().homogeneous();
-      const Eigen::Vector2d direction = Eigen::Vector2d(line.y(), -line.x()).normalized();
-      if (gradient.norm() > 0.0 && direction.allFinite() &&
-          std::abs(gradient.dot(direction)) < min_sine * gradient.norm()) {
-        weak = true;
-      }
-    }
-    const auto point = TriangulateLinear(calibration.P1, calibration.P2,
-                                         stereo_match.left.cast<double>(),
-                                         stereo_match.right.cast<double>());
-    if (!point) {
-      ++report.triangulation.degenerate;
-    } else if (!point->in_front) {
-      ++report.triangulation.behind_camera;
-    } else if (!(point->reprojection_error_px <= options.max_reprojection_error_px)) {
-      ++report.triangulation.large_residual;
-    } else {
-      report.points_in_world.push_back(point->point_in_world);
-      report.match_of_point.push_back(static_cast<int>(m));
-      report.reprojection_error_px.push_back(point->reprojection_error_px);
-      report.weak.push_back(weak);
-      if (weak) ++report.triangulation.edge_along_epipolar;
-      residual_sum += point->reprojection_error_px;
-    }
-  }
-  report.triangulation.accepted = static_cast<int>(report.points_in_world.size());
-  if (report.triangulation.accepted > 0) {
-    report.triangulation.mean_residual_px = residual_sum / report.triangulation.accepted;
-  }
+  TriangulateMatches(calibration, options, &gradients, &report);
   report.timing_ms.triangulate = MillisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
@@ -403,226 +714,13 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   report.timing_ms.cluster = MillisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
-  ObjectPoseOptions pose_options = options.pose;
-  if (options.clustering == ClusteringMethod::kThesisLeader) {
-    // The thesis: centroid = mean of the cluster, yaw from central moments.
-    pose_options.centroid_from_rectangle = false;
-    pose_options.yaw_method = YawMethod::kCentralMoments;
-  }
-  // Poses from the strong points only (weak ones joined the clustering).
-  for (auto& cluster : report.clustering.clusters) {
-    std::vector<int> strong;
-    for (int i : cluster) {
-      if (!report.weak[static_cast<std::size_t>(i)]) strong.push_back(i);
-    }
-    if (static_cast<int>(strong.size()) >= std::min<int>(10, static_cast<int>(cluster.size()))) {
-      for (int i : cluster) {
-        if (report.weak[static_cast<std::size_t>(i)]) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
-      }
-      cluster = std::move(strong);
-    }
-  }
+  const ObjectPoseOptions pose_options = PoseOptionsFor(options);
+  KeepStrongPoints(&report);
   if (options.clustering == ClusteringMethod::kGrid) {
-    if (options.merge_top_face_islands) {
-      PiecesSeenApart seen_apart = nullptr;
-      const bool look = options.join_islands_seen_as_one_face && !left_grey.empty();
-      const bool too_long = options.keep_apart_longer_than_any_part &&
-                            options.max_whole_top_length_mm > 0.0;
-      if (look) need_gradients();
-      if (look || too_long) {
-        seen_apart = [&, look, too_long](const std::vector<Eigen::Vector2d>& a,
-                                         const std::vector<Eigen::Vector2d>& b, double height) {
-          // Two pieces whose joint top would be longer than any part are two parts (it would
-          // be flagged as parts joined: default 419163, 419168, two boxes of one height
-          // 15-30 mm apart, each lost).
-          if (too_long) {
-            std::vector<Eigen::Vector2d> joint = a;
-            joint.insert(joint.end(), b.begin(), b.end());
-            if (MinAreaRectangle(joint).length > options.max_whole_top_length_mm) return true;
-          }
-          if (!look) return false;
-          const std::optional<GapBetweenPieces> gap = LookAcrossGap(
-              a, b, height, calibration.P1, gradient_x, gradient_y, options.top_edges);
-          return gap && gap->sides_support < options.top_edges.min_side_support &&
-                 gap->ends_support >= options.top_edges.min_end_support;
-        };
-      }
-      report.clustering.clusters = MergeTopFaceIslands(
-          report.points_in_world, report.clustering.clusters, pose_options, &report.island_merges,
-          &report.weak, seen_apart);
-    }
-    // Touching parts of unequal height the grid joined (never a pose between them).
-    report.clustering.clusters = SplitTopLevels(report.points_in_world, report.clustering.clusters,
-                                                pose_options, &report.top_level_splits);
-    std::fill(report.clustering.labels.begin(), report.clustering.labels.end(), -1);
-    for (std::size_t c = 0; c < report.clustering.clusters.size(); ++c) {
-      for (int i : report.clustering.clusters[c]) {
-        report.clustering.labels[static_cast<std::size_t>(i)] = static_cast<int>(c);
-      }
-    }
+    RefineGridClusters(calibration, options, pose_options, &gradients, &report);
   }
-  std::vector<ObjectPose> narrow_pieces;  // dropped by min_top_width_mm
-  std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
-    // A small part is kept for now when it may be a whole top face (dropped below if flagged);
-    // the counts and the left-out pieces are of parts at least min_strong_points strong, as
-    // without that exception.
-    const bool below = static_cast<int>(cluster.size()) < options.min_strong_points;
-    bool small = below && !(options.min_strong_points_whole_top > 0 &&
-                            static_cast<int>(cluster.size()) >= options.min_strong_points_whole_top);
-    if (!small && (options.min_top_fraction > 0.0 || options.min_top_width_mm > 0.0)) {
-      ObjectPose pose = EstimateObjectPose(report.points_in_world, cluster, pose_options);
-      if (pose.top_points < options.min_top_fraction * pose.points) {
-        small = true;
-        if (!below) ++report.without_top_face;
-      } else if (pose.top_rectangle.width < options.min_top_width_mm) {
-        small = true;
-        if (!below) {
-          ++report.narrow_top_face;
-          narrow_pieces.push_back(std::move(pose));
-        }
-      } else if (options.max_whole_top_length_mm > 0.0 &&
-                 pose.top_rectangle.length > options.max_whole_top_length_mm &&
-                 pose.top_rectangle.width < options.min_whole_top_width_mm) {
-        // Longer than any part and narrower than any: a line across parts, not a top.
-        small = true;
-        if (!below) ++report.narrow_top_face;
-      }
-    }
-    if (small) {
-      report.clustering.n_in_small_clusters += static_cast<int>(cluster.size());
-      for (int i : cluster) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
-    }
-    return small;
-  });
-  // Poses and their flags. A part below min_strong_points is reported only when no check
-  // flags it; one that is flagged is dropped and the poses are estimated again without it,
-  // so that its points flag no neighbour (touching points, the image fit's blocking).
-  for (bool again = true; again;) {
-    report.merged = 0;
-    report.objects =
-        EstimateObjectPoses(report.points_in_world, report.clustering.clusters, pose_options);
-    CountTouchingPoints(report.points_in_world, report.weak,
-                        {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
-                        options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
-                        &report.objects);
-    for (ObjectPose& pose : report.objects) {
-      // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
-      pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
-                    (pose.top_roundness > options.max_round_top_roundness ||
-                     pose.top_fill < options.min_round_top_fill);
-      // Beside a neighbour, only a full rectangle (or a round top) is trusted.
-      const bool touching =
-          pose.touching_points >= options.touch_min_points ||
-          (options.min_points_above_top > 0 && pose.points_above_top >= options.min_points_above_top);
-      if (!pose.round && touching && pose.top_fill < options.min_touching_top_fill) {
-        pose.merged = true;
-      }
-      // A taller part touching a box hides a strip of its top from the camera on its side; cut
-      // straight, the rest is still a full rectangle.
-      if (!pose.round && options.min_taller_touching_points > 0 &&
-          pose.taller_touching_points >= options.min_taller_touching_points) {
-        pose.merged = true;
-      }
-      // A sliver of a face (a disc seen along a short arc, one edge of a box) is no face.
-      if (!pose.round && pose.top_rectangle.width < options.min_whole_top_width_mm) {
-        pose.merged = true;
-      }
-      // A top longer than any part is parts joined.
-      if (options.max_whole_top_length_mm > 0.0 &&
-          pose.top_rectangle.length > options.max_whole_top_length_mm) {
-        pose.merged = true;
-      }
-      // A line of points at this top's height beside it, left out as too narrow to be a part,
-      // may be a piece of this top the island merge did not join.
-      for (const ObjectPose& piece : narrow_pieces) {
-        if (options.left_out_piece_reach_mm > 0.0 &&
-            std::abs(piece.height_mm - pose.height_mm) <= pose_options.top_layer_mm &&
-            RectangleGap(piece.top_rectangle, pose.top_rectangle) <= options.left_out_piece_reach_mm) {
-          pose.piece_left_out = true;
-          pose.merged = true;
-        }
-      }
-      // A top cut by the field of view is a piece of a face.
-      if (options.image_border_px > 0.0 && !left_grey.empty()) {
-        pose.at_image_border =
-            OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
-        if (pose.at_image_border) pose.merged = true;
-      }
-      if (pose.merged) ++report.merged;
-    }
-    // A sliver reported at a top's height beside it (flagged above as narrower than any part)
-    // may be a piece of that top the island merge did not join, as a left-out line is.
-    for (std::size_t a = 0; options.flag_tops_beside_slivers && a < report.objects.size(); ++a) {
-      ObjectPose& pose = report.objects[a];
-      if (pose.merged) continue;
-      for (std::size_t b = 0; b < report.objects.size(); ++b) {
-        const ObjectPose& piece = report.objects[b];
-        if (b == a || piece.round || piece.top_rectangle.width >= options.min_whole_top_width_mm ||
-            std::abs(piece.height_mm - pose.height_mm) >
-                pose_options.max_split_height_difference_mm ||
-            RectangleGap(piece.top_rectangle, TopFootprint(pose)) >
-                options.left_out_piece_reach_mm) {
-          continue;
-        }
-        pose.piece_left_out = true;
-        pose.merged = true;
-        ++report.merged;
-        break;
-      }
-    }
-    if (options.extend_tops_to_image_edges && !left_grey.empty()) {
-      need_gradients();
-      const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
-                                                           calib::CameraCentre(calibration.P2)};
-      for (std::size_t a = 0; a < report.objects.size(); ++a) {
-        // The other parts' tops (a round one as its circle's square), which no side may enter.
-        std::vector<Rectangle2D> others;
-        for (std::size_t b = 0; b < report.objects.size(); ++b) {
-          if (b == a) continue;
-          others.push_back(TopFootprint(report.objects[b]));
-        }
-        const double max_length = options.max_whole_top_length_mm > 0.0
-                                      ? options.max_whole_top_length_mm
-                                      : std::numeric_limits<double>::infinity();
-        const TopFaceEdgeReport extension = ExtendTopToImageEdges(
-            &report.objects[a], calibration.P1, gradient_x, gradient_y, others,
-            report.points_in_world, report.weak, camera_centres, pose_options.top_layer_mm,
-            max_length, pose_options.centroid_from_rectangle, options.top_edges);
-        report.objects[a].image_edge_moved_mm = extension.moved_mm();
-        TurnTopToImageEdges(&report.objects[a], calibration.P1, gradient_x, gradient_y,
-                            pose_options.yaw_method == YawMethod::kMinAreaRectangle,
-                            options.top_edges);
-        report.objects[a].unplaced_sides = extension.unplaced_sides;
-        if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report.objects[a].merged) {
-          report.objects[a].merged = true;
-          ++report.merged;
-        }
-      }
-    }
-    for (std::size_t a = 0; options.shadow_strip_reach_mm > 0.0 && a < report.objects.size(); ++a) {
-      ObjectPose& pose = report.objects[a];
-      if (pose.round) continue;
-      pose.shadow_strip_mm = EmptyStripToTallerPart(
-          report.objects, a, report.points_in_world, report.weak, pose_options.top_layer_mm,
-          options.shadow_strip_reach_mm, options.max_shadow_strip_points);
-      if (pose.shadow_strip_mm > 0.0 && !pose.merged) {
-        pose.merged = true;
-        ++report.merged;
-      }
-    }
-    again = false;
-    for (const ObjectPose& pose : report.objects) {
-      if (pose.points >= options.min_strong_points || !pose.merged) continue;
-      ++report.small_flagged;
-      report.clustering.n_in_small_clusters += pose.points;
-      for (int i : pose.point_indices) report.clustering.labels[static_cast<std::size_t>(i)] = -1;
-      std::erase_if(report.clustering.clusters, [&](const std::vector<int>& cluster) {
-        return !cluster.empty() && !pose.point_indices.empty() &&
-               cluster.front() == pose.point_indices.front();
-      });
-      again = true;
-    }
-  }
+  const std::vector<ObjectPose> narrow_pieces = DropSmallClusters(options, pose_options, &report);
+  EstimateAndFlagPoses(calibration, options, pose_options, narrow_pieces, &gradients, &report);
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;

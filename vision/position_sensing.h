@@ -32,15 +32,18 @@ MatcherOptions PickCellMatcherOptions();
 /// point's epipolar line and moved along it to the parabola vertex of ZNCC (sub-pixel).
 RefinementOptions PickCellRefinementOptions();
 
+/// The pick pipeline's settings. Each flag below sets ObjectPose::merged (the robot's safety
+/// gate refuses a merged part: its pose may lie between parts or at the centre of a piece of a
+/// face); the thresholds are tuned on render's scenes (docs/sensing.md) and each is
+/// covered by the PositionSensing test named beside it (tests/vision/position_sensing_test.cc).
 struct PositionSensingOptions {
   MatcherOptions matcher = PickCellMatcherOptions();
   /// Points whose RMS reprojection residual (px, both images) exceeds this are rejected: the two
-  /// rays miss each other, so the match is wrong (or F is).
+  /// rays miss each other, so the match (or F) is wrong. TriangulationRejectsBehindCameraAndLargeResiduals.
   double max_reprojection_error_px = 2.0;
   /// Points on edges within this angle (degrees) of their epipolar line are weak: along such an
   /// edge every position correlates alike, so the depth is a guess (their x, y are nearly
   /// right). They help the clustering join a part's edges but never decide its height or pose.
-  /// In the thesis cell the baseline runs along world y, so part edges along y are weak.
   /// 0 makes every point strong.
   double min_edge_epipolar_angle_deg = 20.0;
   ClusteringMethod clustering = ClusteringMethod::kGrid;
@@ -48,172 +51,109 @@ struct PositionSensingOptions {
   LeaderClusteringOptions leader;
   ObjectPoseOptions pose;
   /// Grid clustering: join islands of points inside a larger part's top face at its height
-  /// (engraved marks far from the outline); see MergeTopFaceIslands.
+  /// (MergeTopFaceIslands). APlainTopFaceSeenOnlyOnItsOutlineIsOnePart.
   bool merge_top_face_islands = true;
-  /// ... unless the left image shows the two pieces as two faces (vision/top_face_edges.h,
-  /// LookAcrossGap): the joint top's sides that would run across the gap between them keep
-  /// their face's polarity on less than top_edges.min_side_support of it, and each piece ends
-  /// at an edge - the side of its own minimum-area rectangle that faces the other - both faces
-  /// brighter than the gap (or both darker), on at least top_edges.min_end_support of it. Two
-  /// parts side by side at one height show the ground, their walls and shadows between them
-  /// (default seeds 155183: two boxes 17 mm apart in a row, 17139: two at yaws 37 degrees
-  /// apart, each pair joined into one flagged top, both missed); the pieces of one plain face
-  /// show its sides across the gap, and no edge where its points stop.
+  /// ... unless the left image shows the two pieces as two faces (LookAcrossGap: the joint
+  /// top's sides across the gap keep their polarity on less than top_edges.min_side_support,
+  /// and both pieces end at an edge on at least top_edges.min_end_support).
+  /// TwoBoxesThatTheImageShowsApartStayTwo.
   bool join_islands_seen_as_one_face = true;
-  /// Two pieces whose joint top (minimum-area rectangle of their top points) would be longer
-  /// than max_whole_top_length_mm are not joined: the joint part would be flagged as parts
-  /// joined (below), where each piece may be a whole part (default 419163: two 11 mm boxes
-  /// 58 and 59 mm long, 72 mm apart centre to centre; 419168: two 130 mm boxes; all four
-  /// lost as one flagged false part).
+  /// ... and unless their joint top would be longer than max_whole_top_length_mm (it would be
+  /// flagged as parts joined, where each piece may be a whole part). TwoPiecesLongerThanAnyPartStayTwo.
   bool keep_apart_longer_than_any_part = true;
   /// Parts with fewer strong points (after island merging) are dropped: occlusion and shadow
-  /// boundaries give small, view-dependent clusters. Measured on seeds 100-119: false parts had
-  /// 20-50 strong points, true ones well over 100.
+  /// boundaries give small, view-dependent clusters. AcceptanceOnSeededScenes.
   int min_strong_points = 60;
-  /// ... except that a part with at least this many strong points (and fewer than
-  /// min_strong_points) is kept when nothing flags it: after every check below (fill, width,
-  /// touching, image fit, shadow strip...) it is a whole top face, neither merged nor cut. A
-  /// small box whose long sides run along the epipolar lines keeps only its short sides' points
-  /// strong (default seed 155008: a 54 x 29 x 25 mm box with 51 strong points, its top a full
-  /// 54.2 x 28.4 mm rectangle); the false parts of shadow and occlusion boundaries under 60
-  /// points (default 135000-135199, 155000-155199: 20-57 points) are all slivers or partial
-  /// outlines that the checks flag. Half of min_strong_points, set once; 0 or anything >=
-  /// min_strong_points turns the exception off.
+  /// ... except that a part with at least this many (and fewer than min_strong_points) is kept
+  /// when no check flags it: a whole top face, neither merged nor cut (a small box whose long
+  /// sides run along the epipolar lines keeps few strong points). 0, or anything >=
+  /// min_strong_points, turns the exception off. ASmallBoxWithWeakLongSidesIsKeptWhenNothingFlagsIt.
   int min_strong_points_whole_top = 30;
-  /// Parts whose top layer (ObjectPoseOptions::top_layer_mm) holds fewer than this fraction of
+  /// Parts whose top layer (ObjectPoseOptions::top_layer_mm) holds less than this fraction of
   /// their strong points are dropped: a cluster spread over heights is a vertical structure (a
-  /// part's side seen against its shadow), not a top face. Seeds 100-119: true parts 0.89-1.0,
-  /// the one such false part 0.26. 0 keeps all.
+  /// side seen against its shadow), not a top face. 0 keeps all.
   double min_top_fraction = 0.5;
   /// Parts whose top face's minimum-area rectangle is narrower than this (mm) are dropped: a
-  /// line of points at one height - an edge across a tall part's side face - is not a top face,
-  /// and no gripper takes a part that thin. Seed 11 with 4 objects: a 52.5 x 0.56 mm "part" at
-  /// 67.7 mm on the side of a 143 mm box; the narrowest true top face in seeds 100-119 is far
-  /// wider (the renderer's smallest side is SceneRenderOptions::min_side_mm, 25 mm). 0 keeps all.
+  /// line of points at one height (an edge across a tall part's side) is no top face, and no
+  /// gripper takes a part that thin. 0 keeps all. ALineOfPointsOnATallPartsSideIsNotAPart.
   double min_top_width_mm = 5.0;
-  /// A part whose top face is not round and fills less than this fraction of its minimum-area
-  /// rectangle (ObjectPose::top_fill) is touching parts the clustering could not separate: it is
-  /// reported with `merged` set (OBJECTS.json "merged": true), and the robot's safety gate
-  /// refuses it, since its pose may lie between two parts. Tops whose hull fits a circle to
-  /// max_round_top_roundness of its radius (ObjectPose::top_roundness: a disc fills only pi / 4
-  /// of its square) are not flagged by this rule. 0 flags none.
+  /// A top that is not round and fills less than this fraction of its minimum-area rectangle
+  /// (ObjectPose::top_fill) is touching parts the clustering could not separate: flagged.
+  /// 0 flags none. TwoTouchingPartsJoinedIntoOneAreFlagged.
   double min_top_fill = 0.8;
-  /// ... that circle's RMS residual over its radius: a disc's rim scatters about 0.5 mm, 1-2 %
-  /// of its radius. It was 0.06: on the default and gap0 stress logs of 13000, 35000, 39000 and
-  /// 99000 every top it exempted was a box (0.037-0.057; gap0 99051: a 73 x 34 mm box seen as
-  /// 60 x 34, fill 0.76, roundness 0.041, reported unflagged 7.1 mm off).
+  /// ... unless its hull fits a circle to this RMS residual over the radius
+  /// (ObjectPose::top_roundness; a disc's rim scatters 1-2 % of its radius, and a disc fills
+  /// only pi / 4 of its square). ABoxTopWhoseHullFitsACircleLooselyIsFlagged.
   double max_round_top_roundness = 0.03;
-  /// ... unless they fill less than this fraction of their rectangle: any piece of a disc (a
-  /// circular segment) fills at least 2/3 of its rectangle, while a few hull vertices of a
-  /// partial outline fit some circle by chance (`--min-gap 0`, seed 9029: a 72 x 27 mm piece
-  /// of a box's outline, fill 0.52, roundness 0.023, its pose 4.9 mm off and unflagged).
+  /// ... and fills at least this fraction: any piece of a disc (a circular segment) fills at
+  /// least 2/3 of its rectangle, while a few hull vertices of a partial outline fit some circle
+  /// by chance. APieceOfAnOutlineThatFitsACircleByChanceIsFlagged.
   double min_round_top_fill = 0.6;
-  /// A part counts as touching another when at least touch_min_points of the other parts'
-  /// points (strong, 5 mm or more above the table) lie within this distance (mm) of its top
-  /// face's rectangle in the table plane, or, for points 5 mm or more above its top, when their
-  /// ray from either camera meets the plane of its top that near the rectangle: a taller
-  /// neighbour that hides part of the top from a camera cuts the rectangle there
-  /// (ObjectPose::touching_points). render's parts stand at least 15 mm apart unless
-  /// `--min-gap` says otherwise. In a cell that picks tallest first and senses again after
-  /// each pick, a part refused for a taller neighbour's shadow is seen whole once that
-  /// neighbour is gone.
+  /// A part touches another when at least touch_min_points of the other parts' strong points
+  /// (5 mm or more above the table) lie within this distance (mm) of its top's rectangle in the
+  /// table plane, or, standing above its top, are seen by either camera through its top's plane
+  /// that near the rectangle (ObjectPose::touching_points). TouchingPartsGiveNoUnflaggedPoseBetweenThem.
   double touch_reach_mm = 12.0;
   int touch_min_points = 3;
   /// A part whose own cluster holds at least this many strong points more than 5 mm above its
-  /// top (ObjectPose::points_above_top) is touching a taller part the clustering joined to it
-  /// and did not report: the lower top is the densest, the taller part's walls stretch its
-  /// rectangle (`--min-gap 0`, seeds 59044 and 59096: 159 and 130 such points, centres 13 and
-  /// 18 mm off; good poses beside a taller part hold up to hundreds too, but fill their
-  /// rectangle). 0 disables it.
+  /// top (ObjectPose::points_above_top) touches a taller part the clustering joined to it and
+  /// did not report. 0 disables. APartJoinedWithATallerUnreportedPartIsFlagged.
   int min_points_above_top = 10;
-  /// A touching part that is not round is flagged merged when its top fills less than this
-  /// fraction of its rectangle: beside a neighbour, a top that is not a full rectangle was
-  /// either cut by the neighbour (hidden corners, the rectangle shifted) or stretched by it (a
-  /// neighbour's edge in line) or joined with it, and its centre may be several mm off.
-  /// `--min-gap 0`, seeds 19007, 19027, 39002, 39036, 39042, 39062, 39076, 59044, 59096:
-  /// fills 0.73-0.90, centres 4.4-34 mm off, unflagged under min_top_fill alone. 0 disables
-  /// the rule.
+  /// A touching part that is not round is flagged when its top fills less than this fraction
+  /// of its rectangle: the neighbour cut, stretched or joined it, and its centre may be several
+  /// mm off. 0 disables. TouchingPartsGiveNoUnflaggedPoseBetweenThem.
   double min_touching_top_fill = 0.9;
-  /// A part that is not round with at least this many strong points of taller parts (more than
-  /// top_layer_mm above its top) within touch_reach_mm of its rectangle in the table plane
-  /// (ObjectPose::taller_touching_points) is flagged merged: the taller neighbour's walls hide
-  /// a strip of its top from the camera on that side, and a straight strip leaves a full
-  /// rectangle that min_touching_top_fill passes (`--min-gap 0`, seeds 39001 and 119031: 67 x
-  /// 47 and 68 x 43 mm tops seen as 58 x 48 and 57 x 26, fills 0.96 and 0.92, 4.6 and 9.2 mm
-  /// off, 13 and 16 such points). It costs picks only out of order: the tallest part of a
-  /// touching group has no taller neighbour, so a cell that picks tallest first and senses
-  /// again after each pick is never refused its next pick by this rule. On gap0 39000-39099 it
-  /// flagged 37 of 460 good poses (8 %), on default 13000-13199 none. 0 disables.
+  /// A part that is not round with at least this many strong points of taller parts within
+  /// touch_reach_mm (ObjectPose::taller_touching_points) is flagged: the taller walls hide a
+  /// straight strip of its top, which leaves a full rectangle. A cell that picks tallest first
+  /// and senses again is never refused its next pick by it. 0 disables.
+  /// ABoxTopCutStraightByATallerNeighbourIsFlagged.
   int min_taller_touching_points = 10;
-  /// A part whose top face's rectangle is narrower than this (mm), yet at least
-  /// min_top_width_mm, is a piece of a face, not a face: flagged merged. render's narrowest side
-  /// is 25 mm (SceneRenderOptions::min_side_mm) and every part found within 4 mm of its centre
-  /// on the stress seeds measured at least 20 mm wide; `--min-gap 0`, seed 29020: a 68 mm round
-  /// top seen as a 27 x 8 mm piece, its pose 5.6 mm off. Lower it for thinner parts; 0 disables.
+  /// A part (not round) whose top is narrower than this (mm), yet at least min_top_width_mm, is
+  /// a piece of a face: flagged. render's narrowest side is 25 mm
+  /// (SceneRenderOptions::min_side_mm); lower it for thinner parts; 0 disables.
+  /// ASliverOfATopFaceIsFlagged.
   double min_whole_top_width_mm = 18.0;
-  /// A part whose top face's rectangle is longer than this (mm) is two parts or more that the
-  /// clustering joined: flagged merged. render's longest side is 75 mm
-  /// (SceneRenderOptions::max_side_mm) and every part found within 4 mm of its centre on the
-  /// stress seeds measured at most 81.5 mm long; `--min-gap 0`, seed 79045: two touching parts
-  /// of equal height joined into a 119 x 66 mm top that filled 0.80 of its rectangle, reported
-  /// unflagged 27 mm from either. Raise it for longer parts; 0 disables.
-  /// A cluster whose top is both longer than this and narrower than min_whole_top_width_mm is
-  /// no part and no union of parts (each is at least that wide) but a line across parts, and
-  /// is dropped like one narrower than min_top_width_mm (default seeds 55091 and 55141: 203 x 6
-  /// and 221 x 10 mm strips at 107 and 45 mm, false parts; no such top on the stress logs was
-  /// within 25 mm of a true centre).
+  /// A part whose top is longer than this (mm) is parts the clustering joined: flagged. A
+  /// cluster both longer than this and narrower than min_whole_top_width_mm is a line across
+  /// parts and is dropped. render's longest side is 75 mm (SceneRenderOptions::max_side_mm);
+  /// raise it for longer parts; 0 disables. ATopLongerThanAnyPartIsFlagged,
+  /// AStripLongerAndNarrowerThanAnyPartIsNoPart.
   double max_whole_top_length_mm = 95.0;
-  /// A part whose top face's outline (its rectangle's corners, or its circle when round) at
-  /// its height projects within this many pixels of either image's border, or beyond it, may be
-  /// cut by the field of view: its pose is the centre of the piece in view. Flagged merged and
-  /// ObjectPose::at_image_border. `--min-gap 0`, seed 69062: a 73 x 61 mm box's top cut by the
-  /// bottom border of both images, seen as 61 x 47 mm, its pose 13.8 mm off. 0 disables.
+  /// A part whose top's outline at its height projects within this many pixels of either
+  /// image's border (or beyond) may be cut by the field of view: flagged and
+  /// ObjectPose::at_image_border. 0 disables. ATopCutByTheImageBorderIsFlagged.
   double image_border_px = 4.0;
-  /// A part beside a line of points at its top's height (within top_layer_mm) that was dropped
-  /// as narrower than min_top_width_mm, at most this far (mm) from its top's rectangle, may be
-  /// missing that piece of its top: a plain top's far edge the island merge did not join
-  /// (`--min-gap 0`, seed 69062: a 73 x 61 mm top's far edge, 84 points 27 mm away, left out;
-  /// the pose 13.8 mm off). Flagged merged and ObjectPose::piece_left_out. 0 disables.
+  /// A part beside a line of points at its top's height (within top_layer_mm), dropped as
+  /// narrower than min_top_width_mm, at most this far (mm) from its rectangle, may miss that
+  /// piece of its top: flagged and ObjectPose::piece_left_out. 0 disables.
+  /// APartBesideAPieceOfItsTopLeftOutIsFlagged.
   double left_out_piece_reach_mm = 30.0;
-  /// The same for a sliver reported as a part: a top beside a part narrower than
-  /// min_whole_top_width_mm (itself flagged) at its height (within the 2 mm that the pieces
-  /// of one face agree to, ObjectPoseOptions::max_split_height_difference_mm), within
-  /// left_out_piece_reach_mm, may be the rest of that face, and its pose the centre of a piece
-  /// (default seed 289060: a 67 x 51 mm top, 146 mm tall, seen as a 60 x 16 mm strip and a
-  /// 67 x 37 mm rest that fitted a partly seen disc, sent 13.3 mm off). Flagged merged and
-  /// ObjectPose::piece_left_out.
+  /// The same for a sliver reported as a part (narrower than min_whole_top_width_mm, within
+  /// ObjectPoseOptions::max_split_height_difference_mm of the top's height, within
+  /// left_out_piece_reach_mm). APartBesideASliverOfItsTopIsFlagged.
   bool flag_tops_beside_slivers = true;
   /// A box whose top has an empty strip (at most max_shadow_strip_points strong points at any
-  /// height) between one of its sides and a taller part up to this far (mm) beyond it, along
-  /// at least half that side, is flagged merged (ObjectPose::shadow_strip_mm): nothing shows
-  /// that the top ends at that side, and the taller part's shadow can hide the rest of it
-  /// where the face's outline has no contrast left (`--min-gap 0`, seed 179050: a 75 x 50 mm
-  /// top whose far 7 mm lie in a 115 mm neighbour's shadow, as dark as the ground around, seen
-  /// 68 mm long, 4.0 mm off). Checked after the image-edge fit below. 0 disables.
+  /// height) between a side and a taller part up to this far (mm) beyond it, along at least
+  /// half that side, is flagged (ObjectPose::shadow_strip_mm): the taller part's shadow may
+  /// hide the rest of its top. Checked after the image-edge fit. 0 disables.
+  /// ABoxTopWithAnEmptyStripToATallerPartIsFlagged.
   double shadow_strip_reach_mm = 20.0;
   int max_shadow_strip_points = 2;
-  /// A box whose top keeps a side with no edge under it in the left image, which the
-  /// image-edge fit below could place neither in nor out (ObjectPose::unplaced_sides), is
-  /// flagged merged: nothing in the image confirms where its face ends on that side, and the
-  /// points alone put it there (default 145009: a 69 x 56 mm top stretched 13 mm by points
-  /// beyond it, 5.5 mm off and turned 90 degrees; gap0 189079: a 68 x 48 mm top whose end
-  /// edge the matches missed, beside a taller cylinder that blocks the fit, 4.9 mm off).
-  /// Needs extend_tops_to_image_edges.
+  /// A box whose top keeps a side that the image-edge fit could place neither in nor out
+  /// (ObjectPose::unplaced_sides) is flagged: only the points put that side there. Needs
+  /// extend_tops_to_image_edges. ABoxTopWithASideTheImageDoesNotPlaceIsFlagged.
   bool flag_unplaced_sides = true;
-  /// Box tops fitted to the left image's edges (vision/top_face_edges.h): each side of a top's
-  /// rectangle with no image edge under it moves, at the top's height, out to a straight image
-  /// edge that its two neighbouring sides reach, when no matched point seen through the added
-  /// strip contradicts a face there (default seed 85011: a 67 x 36 mm top whose end edges lie
-  /// along the epipolar lines seen 58 mm long, its centre 4.2 mm off), or in to such an edge
-  /// inside it when few of the top's points lie beyond (default seed 85156: a 43 x 36 mm top
-  /// stretched 9.7 mm by a taller neighbour's points, 4.6 mm off). The flags above are set from
-  /// the points before it; ObjectPose::image_edge_moved_mm says how far it moved the sides.
+  /// Box tops fitted to the left image's edges (ExtendTopToImageEdges, TurnTopToImageEdges;
+  /// vision/top_face_edges.h): a side with no image edge under it moves out to the face's edge,
+  /// or in to one inside it. The flags above are set from the points before the fit;
+  /// ObjectPose::image_edge_moved_mm says how far it moved the sides.
+  /// ABoxTopWhoseEndEdgesAreWeakIsCompletedFromTheImage, ABoxTopStretchedPastItsEdgeMovesInToTheImageEdge.
   bool extend_tops_to_image_edges = true;
   TopFaceEdgeOptions top_edges;
   /// The matches' refinements before triangulation (vision/matcher_presets.h):
-  /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC
-  /// along the epipolar line (docs/sensing.md, "Refinements": height p99 0.56 ->
-  /// 0.21 mm on default 65000-65199); the left-right check stays off.
+  /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC along
+  /// the epipolar line; the left-right check stays off. SubPixelMatchesTightenTheHeights.
   RefinementOptions refinement = PickCellRefinementOptions();
   std::string Check() const;
 };

@@ -21,7 +21,7 @@ namespace hnnstereo::vision {
 /// Measured (tests/vision/setup_checks_test.cc prints them): share of the textured blocks
 /// best at shift 0 - Teddy im2/im6 0.008; rendered cells, seeds 1-5, 0.007-0.024; the same
 /// image twice 1.00; copies with Gaussian noise of sigma 1, 3 or 8 grey levels, a 1 px blur or
-/// a JPEG at quality 50: 0.99-1.00. Hence the 0.8 threshold. 1-50 ms per pair. For Teddy given
+/// a JPEG at quality 50: 0.99-1.00. Hence the 0.8 threshold. For Teddy given
 /// right-left, 0.97 of the moved blocks move the wrong way (0.05 the right way round); the
 /// rendered cells' cameras are not side by side along x, so there the sign test stays silent.
 struct DistinctPairOptions {
@@ -85,7 +85,7 @@ struct SwapComparison {
 /// with the two images exchanged (the same calibration). The images of a swapped pair correlate far
 /// better the other way round. looks_swapped: swapped_zncc >= 0.7 and >= as_given_zncc + 0.15.
 /// Measured on rendered cell seed 7: 1.00 as given vs 0.70 exchanged; given right-left, the
-/// reverse. Tens of ms; callers run it only when something looks wrong (no parts found).
+/// reverse. Callers run it only when something looks wrong (no parts found).
 SwapComparison CompareWithSwappedCameras(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                          const calib::StereoCalibration& calibration,
                                          std::pair<double, double> z_range_mm);

@@ -102,6 +102,90 @@ std::string MatcherOptions::Check() const {
   return {};
 }
 
+namespace {
+
+// The two images' features, detected side by side on OpenCV's thread pool (a detector's own
+// parallel loops then run serially inside). An exception in either is carried out of the pool
+// and rethrown here, left image first.
+void DetectBothFeatures(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                        const FeatureOptions& options, FeatureReport* left, FeatureReport* right) {
+  std::exception_ptr failed[2];
+  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
+    for (int side = range.start; side < range.end; ++side) {
+      try {
+        *(side == 0 ? left : right) = DetectFeatures(side == 0 ? left_grey : right_grey, options);
+      } catch (...) {
+        failed[side] = std::current_exception();
+      }
+    }
+  });
+  for (const std::exception_ptr& error : failed) {
+    if (error) std::rethrow_exception(error);
+  }
+}
+
+// Runs the network on the engine asked for; the opencl engine without a runtime falls back to
+// the cpu engine with a notice in `engine_notice`.
+hnn::SolveReport SolveNetwork(const hnn::MatchingProblem& problem, const MatcherOptions& options,
+                              ocl::Runtime* runtime, std::string* engine_notice) {
+  hnn::EngineKind engine = options.engine;
+  if (engine == hnn::EngineKind::kOpenCL && runtime == nullptr) {
+    engine = hnn::EngineKind::kCpu;
+    *engine_notice = "no OpenCL device available: using the cpu engine";
+  }
+  switch (engine) {
+    case hnn::EngineKind::kThesis:
+      return hnn::SolveThesis(problem, options.energy, options.dynamics, options.memory_budget_bytes);
+    case hnn::EngineKind::kCpu:
+      return hnn::SolveCpu(problem, options.energy, options.dynamics, options.memory_budget_bytes);
+    case hnn::EngineKind::kOpenCL: {
+      hnn::OpenClEngine opencl(*runtime, options.opencl);
+      return opencl.Solve(problem, options.energy, options.dynamics, options.memory_budget_bytes);
+    }
+  }
+  return {};
+}
+
+// The decoded winners as matches, each with its margins over the best other neuron of its row
+// (StereoMatch::potential_margin, correlation_margin): a winner alone in its row is measured
+// against a neuron held off by its inhibition (u = -2B) and a correlation of -1.
+std::vector<StereoMatch> MatchesWithMargins(const hnn::MatchingProblem& problem,
+                                            const std::vector<hnn::DecodedMatch>& decoded,
+                                            const std::vector<double>& u, double B) {
+  std::vector<StereoMatch> matches;
+  matches.reserve(decoded.size());
+  // Row ranges of the candidates (sorted by left feature).
+  std::vector<int> row_start(static_cast<std::size_t>(problem.n_left()) + 1, 0);
+  for (const hnn::Candidate& c : problem.candidates) ++row_start[static_cast<std::size_t>(c.left) + 1];
+  for (std::size_t i = 1; i < row_start.size(); ++i) row_start[i] += row_start[i - 1];
+  const double lone_potential = -2.0 * B;
+  for (const hnn::DecodedMatch& m : decoded) {
+    const hnn::Candidate& c = problem.candidates[static_cast<std::size_t>(m.neuron)];
+    StereoMatch match{problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
+                      static_cast<float>(m.activation), c.left, c.column};
+    double other_u = lone_potential;
+    float other_correlation = -1.0f;
+    bool has_other = false;
+    for (int b = row_start[static_cast<std::size_t>(c.left)];
+         b < row_start[static_cast<std::size_t>(c.left) + 1]; ++b) {
+      if (b == m.neuron) continue;
+      const auto ub = static_cast<std::size_t>(b);
+      other_u = has_other ? std::max(other_u, u.empty() ? 0.0 : u[ub])
+                          : (u.empty() ? 0.0 : u[ub]);
+      other_correlation = std::max(other_correlation, problem.candidates[ub].correlation);
+      has_other = true;
+    }
+    const double own_u = u.empty() ? 0.0 : u[static_cast<std::size_t>(m.neuron)];
+    match.potential_margin = static_cast<float>(own_u - other_u);
+    match.correlation = c.correlation;
+    match.correlation_margin = c.correlation - other_correlation;
+    matches.push_back(match);
+  }
+  return matches;
+}
+
+}  // namespace
+
 MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
                         const calib::StereoCalibration* calibration, const MatcherOptions& options,
                         ocl::Runtime* runtime) {
@@ -113,23 +197,8 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const auto total_start = Clock::now();
 
   auto start = Clock::now();
-  // The two images' features are independent: detected side by side on OpenCV's thread pool
-  // (a detector's own parallel loops then run serially inside). An exception in either is
-  // carried out of the pool and rethrown here, left image first.
   FeatureReport left, right;
-  std::exception_ptr failed[2];
-  cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& range) {
-    for (int side = range.start; side < range.end; ++side) {
-      try {
-        (side == 0 ? left : right) = DetectFeatures(side == 0 ? left_grey : right_grey, options.features);
-      } catch (...) {
-        failed[side] = std::current_exception();
-      }
-    }
-  });
-  for (const std::exception_ptr& error : failed) {
-    if (error) std::rethrow_exception(error);
-  }
+  DetectBothFeatures(left_grey, right_grey, options.features, &left, &right);
   report.timing_ms.features = MillisecondsSince(start);
   report.left_features = left.points;
   report.right_features = right.points;
@@ -156,27 +225,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   }
 
   if (options.network_observer) options.network_observer(problem, options.energy, options.dynamics);
-  hnn::EngineKind engine = options.engine;
-  if (engine == hnn::EngineKind::kOpenCL && runtime == nullptr) {
-    engine = hnn::EngineKind::kCpu;
-    report.engine_notice = "no OpenCL device available: using the cpu engine";
-  }
-  switch (engine) {
-    case hnn::EngineKind::kThesis:
-      report.solve = hnn::SolveThesis(problem, options.energy, options.dynamics,
-                                      options.memory_budget_bytes);
-      break;
-    case hnn::EngineKind::kCpu:
-      report.solve = hnn::SolveCpu(problem, options.energy, options.dynamics,
-                                   options.memory_budget_bytes);
-      break;
-    case hnn::EngineKind::kOpenCL: {
-      hnn::OpenClEngine opencl(*runtime, options.opencl);
-      report.solve = opencl.Solve(problem, options.energy, options.dynamics,
-                                  options.memory_budget_bytes);
-      break;
-    }
-  }
+  report.solve = SolveNetwork(problem, options, runtime, &report.engine_notice);
   report.n_connections = report.solve.n_connections;
   report.timing_ms.network = report.solve.network_ms;
   report.timing_ms.weights = report.solve.weights_ms;
@@ -185,36 +234,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   start = Clock::now();
   const std::vector<hnn::DecodedMatch> decoded =
       hnn::Decode(problem, report.solve.activation, options.decode, &report.solve.potential);
-  report.matches.reserve(decoded.size());
-  // Row ranges of the candidates (sorted by left feature), for the winners' margins.
-  std::vector<int> row_start(static_cast<std::size_t>(problem.n_left()) + 1, 0);
-  for (const hnn::Candidate& c : problem.candidates) ++row_start[static_cast<std::size_t>(c.left) + 1];
-  for (std::size_t i = 1; i < row_start.size(); ++i) row_start[i] += row_start[i - 1];
-  const std::vector<double>& u = report.solve.potential;
-  // A winner alone in its row is measured against a neuron held off by its inhibition (-2B).
-  const double lone_potential = -2.0 * options.energy.B;
-  for (const hnn::DecodedMatch& m : decoded) {
-    const hnn::Candidate& c = problem.candidates[static_cast<std::size_t>(m.neuron)];
-    StereoMatch match{problem.left_points[static_cast<std::size_t>(c.left)], c.right_point,
-                      static_cast<float>(m.activation), c.left, c.column};
-    double other_u = lone_potential;
-    float other_correlation = -1.0f;
-    bool has_other = false;
-    for (int b = row_start[static_cast<std::size_t>(c.left)];
-         b < row_start[static_cast<std::size_t>(c.left) + 1]; ++b) {
-      if (b == m.neuron) continue;
-      const auto ub = static_cast<std::size_t>(b);
-      other_u = has_other ? std::max(other_u, u.empty() ? 0.0 : u[ub])
-                          : (u.empty() ? 0.0 : u[ub]);
-      other_correlation = std::max(other_correlation, problem.candidates[ub].correlation);
-      has_other = true;
-    }
-    const double own_u = u.empty() ? 0.0 : u[static_cast<std::size_t>(m.neuron)];
-    match.potential_margin = static_cast<float>(own_u - other_u);
-    match.correlation = c.correlation;
-    match.correlation_margin = c.correlation - other_correlation;
-    report.matches.push_back(match);
-  }
+  report.matches = MatchesWithMargins(problem, decoded, report.solve.potential, options.energy.B);
   // The neighbourhood votes count every decoded winner, before any is dropped by confidence.
   CountAgreeingNeighbours(report.matches);
   for (StereoMatch& match : report.matches) match.confidence = MatchConfidence(match, options.confidence);

@@ -232,8 +232,8 @@ double NeighbourSidePolarity(const EdgeProbe& probe, const Frame& f, int k, doub
 // its end is darker than the ground beside it; 0 when a side shows no polarity along the face.
 // `wall_mm` (for the side at -half and at +half across): each side's line past the edge may lie
 // up to that far outward (the best line counts): in a shadow the face and the wall the camera
-// sees beside it can be equally dark, and the side's edge is then the wall's base (default
-// 259055, gap0 239086: tops whose far 11-15 mm lie in a taller neighbour's shadow).
+// sees beside it can be equally dark, and the side's edge is then the wall's base
+// (InAShadowASidesEdgeMayBeItsWallsBase).
 std::optional<double> NeighbourSidesSupport(const EdgeProbe& probe, const Frame& f, int k,
                                             double near, double far, double step,
                                             std::optional<double> face_corner_margin = std::nullopt,
@@ -375,294 +375,335 @@ std::string TopFaceEdgeOptions::Check() const {
   return {};
 }
 
-TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
-                                        const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                        const std::vector<Rectangle2D>& others,
-                                        const std::vector<Eigen::Vector3d>& points,
-                                        const std::vector<bool>& weak,
-                                        const std::vector<Eigen::Vector3d>& camera_centres,
-                                        double top_layer_mm, double max_length_mm,
-                                        bool centroid_from_rectangle,
-                                        const TopFaceEdgeOptions& options) {
-  TopFaceEdgeReport report;
-  if (pose->round || gradient_x.empty()) return report;
-  const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient);
-  Frame f = FrameOf(pose->top_rectangle);
-  const double step = options.step_mm;
+namespace {
+
+// Where side k's outward search starts (mm past the side) and whether the side lies at a line
+// across the face (an image edge the face's two sides go on past), whose end lies further out.
+struct OutwardSearch {
+  double from = 1.0;
+  bool line_at_side = false;
+};
+
+// One top's fit to the image's edges (ExtendTopToImageEdges): the top's frame as its sides
+// move, the report of the moves, and the tests the fit makes on that frame. Each public step
+// reads top-down: FitPasses runs FitSide on every side, once or twice; FitSide tests the side
+// where it lies, may move it in to an edge inside, and else searches outward.
+class TopFit {
+ public:
+  TopFit(const ObjectPose& pose, const TopFaceEdgeInputs& in, const TopFaceEdgeOptions& options)
+      : pose_(pose),
+        in_(in),
+        options_(options),
+        probe_(in.P, in.gradient_x, in.gradient_y, pose.height_mm, options.min_edge_gradient),
+        f_(FrameOf(pose.top_rectangle)),
+        step_(options.step_mm),
+        camera_(calib::CameraCentre(in.P)) {}
+
+  const Frame& frame() const { return f_; }
+  int lines_unplaced() const { return lines_unplaced_; }
+
+  // Two passes when the first moves a side (second_pass): a side's test reads its neighbouring
+  // sides' lines, which may move after it. The moves add up; the second pass's findings are
+  // counted afresh and merged with the first's (the support before any move, the larger count).
+  TopFaceEdgeReport FitPasses() {
+    TopFaceEdgeReport first;  // the first pass's findings, when there is a second
+    for (int pass = 0; pass < (options_.second_pass ? 2 : 1); ++pass) {
+      if (pass == 1) {
+        if (report_.moved_mm() == 0.0) break;
+        first = report_;
+        report_ = TopFaceEdgeReport{};
+        for (int k = 0; k < 4; ++k) report_.extension_mm[k] = first.extension_mm[k];
+        lines_unplaced_ = 0;
+      }
+      for (int k = 0; k < 4; ++k) FitSide(k);
+    }
+    for (int k = 0; k < 4; ++k) {
+      if (report_.end_support_before[k] < options_.min_end_support && report_.extension_mm[k] == 0.0) {
+        ++report_.unplaced_sides;
+      }
+    }
+    report_.unplaced_sides += lines_unplaced_;
+    if (first.moved_mm() != 0.0) {
+      for (int k = 0; k < 4; ++k) report_.end_support_before[k] = first.end_support_before[k];
+      report_.refused_by_points = std::max(report_.refused_by_points, first.refused_by_points);
+      report_.edge_inside = std::max(report_.edge_inside, first.edge_inside);
+      report_.line_on_face = std::max(report_.line_on_face, first.line_on_face);
+      report_.end_edge_reversed = std::max(report_.end_edge_reversed, first.end_edge_reversed);
+    }
+    return report_;
+  }
+
+ private:
+  // One side: its support where it lies; at an image edge it stays unless that edge is a line
+  // across the face; with none under it, it moves in to an edge inside when there is one;
+  // else the first edge outward that passes the tests, unless matched points contradict it.
+  void FitSide(int k) {
+    double face_polarity = 0.0;
+    const double before = SupportBefore(k, &face_polarity);
+    const bool at_edge = before >= options_.min_end_support;
+    OutwardSearch search;
+    if (at_edge ? !LineAcrossFaceAtSide(k, &search) : SettledInside(k, face_polarity, &search)) {
+      return;
+    }
+    const double found = SearchOutward(k, &search);
+    if (found <= 0.0) {
+      if (search.line_at_side && at_edge && !EndAtOwnWall(k)) ++lines_unplaced_;  // else counted later
+      return;
+    }
+    const double best = StrongestLine(k, found);
+    const Frame g = Extended(f_, k, best);
+    if (ContradictedByPoints(g, k)) {
+      ++report_.refused_by_points;
+      if (search.line_at_side && at_edge) ++lines_unplaced_;  // else counted later
+      return;
+    }
+    report_.extension_mm[k] += best;
+    f_ = g;
+  }
+
+  // Side k's image-edge support where it lies (within 1 mm), recorded in end_support_before.
+  // An edge under the side with the polarity opposite to the face's outline along its two
+  // neighbouring sides is no end of this face (a shadow's outer edge on the ground, matched at
+  // the top's height; end_edge_polarity): the support is then taken with the face's polarity,
+  // which `face_polarity` keeps for the search inward (0: any polarity).
+  double SupportBefore(int k, double* face_polarity) {
+    double before = BestNearSide(f_, k, 1.0, options_.step_mm, [&](const Frame& g) {
+      return SideSupport(probe_, g, k, options_);
+    });
+    report_.end_support_before[k] = before;
+    if (options_.end_edge_polarity && before >= options_.min_end_support) {
+      if (const double polarity = NeighbourSidesPolarity(probe_, f_, k, options_.corner_margin_mm, step_);
+          polarity != 0.0) {
+        *face_polarity = polarity;
+        const double polar = BestNearSide(f_, k, 1.0, options_.step_mm, [&](const Frame& g) {
+          return SupportWithPolarity(g, k, *face_polarity);
+        });
+        if (polar < options_.min_end_support) {
+          ++report_.end_edge_reversed;
+          before = polar;
+        } else {
+          *face_polarity = 0.0;
+        }
+      }
+    }
+    return before;
+  }
+
+  // Side k's image-edge support on frame g: any polarity when `face_polarity` is 0, else the
+  // face's (PolarSupport).
+  double SupportWithPolarity(const Frame& g, int k, double face_polarity) const {
+    if (face_polarity == 0.0) return SideSupport(probe_, g, k, options_);
+    const Side s = SideOf(k);
+    Eigen::Vector2d a, b;
+    return SideSegment(g, k, options_, &a, &b)
+               ? probe_.PolarSupport(a, b, s.sign * g.axis[s.axis], face_polarity, step_)
+               : 0.0;
+  }
+
+  // A side at an image edge ends the face unless the face's two sides go on past that edge in
+  // the image (look_past_lines_on_face): then the edge is a line across the face (a taller
+  // neighbour's shadow's edge, a mark) and the search goes on past the base edge of a wall that
+  // would stand on it. Returns whether to search outward.
+  bool LineAcrossFaceAtSide(int k, OutwardSearch* search) {
+    if (!options_.look_past_lines_on_face) return false;
+    const double past_from = f_.half[SideOf(k).axis] + 1.0 + options_.corner_margin_mm;
+    if (SidesPast(f_, k, past_from) < options_.min_side_support) return false;
+    ++report_.line_on_face;
+    search->line_at_side = true;
+    search->from = std::max(1.0 + options_.corner_margin_mm, WallSeenMm(k) + kPastWallMm);
+    return true;
+  }
+
+  // A side with no image edge under it may lie beyond the face's edge (points at the top
+  // height past it): it moves in to the first edge within max_inward_mm, when at most
+  // max_cut_fraction of the top's points lie beyond that edge and the face's sides do not go
+  // on past it (else it is a line on the face). Returns whether the side is settled: moved in,
+  // or kept; false (search outward) when there is no edge inside, or when that edge is a line
+  // across the face whose end may lie further out.
+  bool SettledInside(int k, double face_polarity, OutwardSearch* search) {
+    const Side s = SideOf(k);
+    double inside = 0.0;
+    for (double e = -1.0 - step_; e >= -options_.max_inward_mm - 1e-9 && Admissible(k, e); e -= step_) {
+      if (SupportWithPolarity(Extended(f_, k, e), k, face_polarity) >= options_.min_end_support) {
+        inside = e;
+        break;
+      }
+    }
+    if (!(inside < 0.0)) return false;
+    ++report_.edge_inside;
+    const double best = StrongestLine(k, inside);
+    const Frame g = Extended(f_, k, best);
+    // The face's sides sampled from the corner margin past the edge to the side as it was, and
+    // at least kSidesPastMm: a face that goes on past the edge goes on past the side as well.
+    const double past_from = f_.half[s.axis] + best + options_.corner_margin_mm;
+    const std::optional<double> sides_past_edge = NeighbourSidesSupport(
+        probe_, f_, k, past_from, std::max(f_.half[s.axis], past_from + kSidesPastMm), step_,
+        std::nullopt, NeighbourWalls(k));
+    if (FractionBeyondSide(g, k, pose_.height_mm, in_.top_layer_mm, in_.points,
+                           pose_.point_indices) <= options_.max_cut_fraction &&
+        sides_past_edge.value_or(0.0) < options_.min_side_support) {
+      report_.extension_mm[k] += best;
+      f_ = g;
+      return true;
+    }
+    // A line across the face just inside the side, the face's sides going on past it with the
+    // face's polarity: the face's end may lie further out. Search out from the side.
+    if (!options_.look_past_lines_on_face || SidesPast(f_, k, past_from) < options_.min_side_support) {
+      return true;
+    }
+    ++report_.line_on_face;
+    search->line_at_side = true;
+    search->from = std::max(search->from, best + WallSeenMm(k) + kPastWallMm);
+    return false;
+  }
+
+  // The first move outward (mm, from search->from up to max_extension_mm, admissible, into no
+  // other part's rectangle) where side k is at an image edge and its neighbouring sides reach
+  // it; an edge found that is itself a line across the face is looked past. 0: none found.
+  double SearchOutward(int k, OutwardSearch* search) {
+    const Side s = SideOf(k);
+    const double from = f_.half[s.axis];
+    for (double e = search->from; e <= options_.max_extension_mm + 1e-9 && Admissible(k, e);
+         e += step_) {
+      const Frame g = Extended(f_, k, e);
+      bool blocked = false;
+      for (const Rectangle2D& other : in_.others) blocked = blocked || Overlaps(g, other, 1.0);
+      if (blocked) break;
+      // The neighbouring sides from the old side (2 from - g.half from g's centre, which moved
+      // by half the extension) to the corner margin before the new one.
+      if (SideSupport(probe_, g, k, options_) >= options_.min_end_support &&
+          NeighbourSidesSupport(
+              probe_, g, k, 2.0 * from - g.half[s.axis], g.half[s.axis] - options_.corner_margin_mm,
+              step_, std::nullopt,
+              search->line_at_side ? NeighbourWalls(k) : std::array<double, 2>{0.0, 0.0})
+                  .value_or(1.0) >= options_.min_side_support) {
+        const double past = g.half[s.axis] + 1.0 + options_.corner_margin_mm;
+        if (options_.look_past_lines_on_face && SidesPast(g, k, past) >= options_.min_side_support) {
+          if (!search->line_at_side) ++report_.line_on_face;
+          search->line_at_side = true;
+          e += WallSeenMm(k) + kPastWallMm;
+          continue;
+        }
+        return e;
+      }
+    }
+    return 0.0;
+  }
+
+  // Whether a side at a line across the face, whose end was not found, is the face's end after
+  // all (end_at_own_wall): the face's sides stop past the wall the camera sees beyond it, so
+  // what went on in line with them was that wall.
+  bool EndAtOwnWall(int k) const {
+    const double past_wall = f_.half[SideOf(k).axis] + WallSeenMm(k) + kPastWallMm;
+    return options_.end_at_own_wall && !(SidesPast(f_, k, past_wall) >= options_.min_side_support);
+  }
+
+  // Whether more than max_contradicting_points strong points lower than the top (by 2 top
+  // layers) are seen through the strip that moving side k to frame g adds (1.5 mm inside its
+  // sides): the table or a lower part where the face would hide them.
+  bool ContradictedByPoints(const Frame& g, int k) const {
+    const Side s = SideOf(k);
+    const double from = f_.half[s.axis];
+    constexpr double kInsideMm = 1.5;
+    const double low = pose_.height_mm - 2.0 * in_.top_layer_mm;
+    return LowerPointsSeenThroughStrip(g, k, 2.0 * from - g.half[s.axis] + kInsideMm,
+                                       g.half[s.axis] - kInsideMm, kInsideMm, pose_.height_mm, low,
+                                       in_.points, in_.weak,
+                                       in_.camera_centres) > options_.max_contradicting_points;
+  }
+
   // Whether side k may move by e (mm, outward positive): the top keeps some width and stays
   // within max_length_mm.
-  const auto admissible = [&](int k, double e) {
-    const Frame g = Extended(f, k, e);
-    return g.half[SideOf(k).axis] > 2.0 * options.corner_margin_mm &&
-           2.0 * std::max(g.half[0], g.half[1]) <= max_length_mm;
-  };
+  bool Admissible(int k, double e) const {
+    const Frame g = Extended(f_, k, e);
+    return g.half[SideOf(k).axis] > 2.0 * options_.corner_margin_mm &&
+           2.0 * std::max(g.half[0], g.half[1]) <= in_.max_length_mm;
+  }
+
   // The support test passes a few pixels before an edge (the Sobel response is a few pixels
   // wide, the test allows 1 px): the edge's line is where the gradient across the side peaks,
   // within the next 3 mm of a move that first passes it at `first`.
-  const auto strongest_line = [&](int k, double first) {
-    const double direction = first > 0.0 ? step : -step;
-    double best = first, best_strength = SideStrength(probe, Extended(f, k, first), k, options);
-    for (double e = first + direction; std::abs(e - first) <= 3.0 + 1e-9 && admissible(k, e);
+  double StrongestLine(int k, double first) const {
+    const double direction = first > 0.0 ? step_ : -step_;
+    double best = first, best_strength = SideStrength(probe_, Extended(f_, k, first), k, options_);
+    for (double e = first + direction; std::abs(e - first) <= 3.0 + 1e-9 && Admissible(k, e);
          e += direction) {
-      const double strength = SideStrength(probe, Extended(f, k, e), k, options);
+      const double strength = SideStrength(probe_, Extended(f_, k, e), k, options_);
       if (strength > best_strength) {
         best = e;
         best_strength = strength;
       }
     }
     return best;
-  };
-  // The image's camera centre, and how far (mm, in the plane of the top, outward) the wall
-  // under side k shows past it in the image: 0 where the camera does not see that wall. A
-  // wall's outline can run on in line with the face's sides, as bright as a shadowed face or
-  // brighter (default 65019, 65086: tops stretched over their walls' base edges), so a side
-  // looking past a line across the face never stops at the base edge of a wall standing on
-  // that line.
-  const Eigen::Vector3d camera = calib::CameraCentre(P);
-  const auto wall_seen_mm = [&](int k) {
+  }
+
+  // How far (mm, in the plane of the top, outward) the wall under side k shows past it in the
+  // image: 0 where the camera does not see that wall. The base point under the side's middle,
+  // seen through the plane of the top, lies at mid + h / H (C - mid). A side looking past a
+  // line across the face never stops at the base edge of a wall standing on that line.
+  double WallSeenMm(int k) const {
     const Side s = SideOf(k);
-    const Eigen::Vector2d outward = s.sign * f.axis[s.axis];
-    const Eigen::Vector2d mid = f.centre + f.half[s.axis] * outward;
-    if (!(camera.z() > pose->height_mm)) return 0.0;
-    // The base point under mid, seen through the plane of the top: mid + h / H (C - mid).
-    return std::max(0.0, pose->height_mm / camera.z() * (camera.head<2>() - mid).dot(outward));
-  };
+    const Eigen::Vector2d outward = s.sign * f_.axis[s.axis];
+    const Eigen::Vector2d mid = f_.centre + f_.half[s.axis] * outward;
+    if (!(camera_.z() > pose_.height_mm)) return 0.0;
+    return std::max(0.0, pose_.height_mm / camera_.z() * (camera_.head<2>() - mid).dot(outward));
+  }
+
   // The walls seen beside side k's two neighbouring sides (at -half and +half across), plus
   // 1 mm of blur, where those sides' lines may lie past a line across the face.
-  const auto neighbour_walls = [&](int k) {
+  std::array<double, 2> NeighbourWalls(int k) const {
     const int other = 1 - SideOf(k).axis;
-    return std::array<double, 2>{wall_seen_mm(2 * other + 1) + 1.0, wall_seen_mm(2 * other) + 1.0};
-  };
+    return std::array<double, 2>{WallSeenMm(2 * other + 1) + 1.0, WallSeenMm(2 * other) + 1.0};
+  }
+
+  // The face's sides' support (with the face's polarity) over kSidesPastMm from `near` (mm
+  // from frame g's centre) past side k: whether the face goes on past an edge there.
+  double SidesPast(const Frame& g, int k, double near) const {
+    return NeighbourSidesSupport(probe_, g, k, near, near + kSidesPastMm, step_,
+                                 options_.corner_margin_mm, NeighbourWalls(k))
+        .value_or(0.0);
+  }
+
+  const ObjectPose& pose_;
+  const TopFaceEdgeInputs& in_;
+  const TopFaceEdgeOptions& options_;
+  const EdgeProbe probe_;
+  Frame f_;
+  const double step_;
+  const Eigen::Vector3d camera_;  // the image's camera centre
+  TopFaceEdgeReport report_;
   // Sides at an image edge that is a line across the face whose end was not placed (those
   // beyond an inner line count with the sides that have no edge under them).
-  int lines_unplaced = 0;
-  // Two passes when the first moves a side: a side's test reads its neighbouring sides' lines,
-  // which may move after it (gap0 299057: a 30 mm wide top seen 35.6 mm wide; its end at a
-  // neighbour's shadow's edge, tested before the sides moved in, sampled the face's sides
-  // 2-5 mm off their edges and never looked past it; 9.6 mm off).
-  TopFaceEdgeReport first;  // the first pass's findings, when there is a second
-  for (int pass = 0; pass < (options.second_pass ? 2 : 1); ++pass) {
-    if (pass == 1) {
-      if (report.moved_mm() == 0.0) break;
-      // The moves add up; the second pass's findings are counted afresh (merged below).
-      first = report;
-      report = TopFaceEdgeReport{};
-      for (int k = 0; k < 4; ++k) report.extension_mm[k] = first.extension_mm[k];
-      lines_unplaced = 0;
-    }
-    for (int k = 0; k < 4; ++k) {
-      const Side s = SideOf(k);
-      // Is the side already at an image edge (within 1 mm)?
-      double before = BestNearSide(f, k, 1.0, options.step_mm, [&](const Frame& g) {
-        return SideSupport(probe, g, k, options);
-      });
-      report.end_support_before[k] = before;
-      // An edge under the side with the polarity opposite to the face's outline along its two
-      // neighbouring sides is no end of this face: a shadow's outer edge on the ground, matched
-      // at the top's height and joined to it (gap0 249002: a line of 49 points 13 mm beyond a
-      // 45 mm wide top, along its shadow's far edge - ground brighter than the shadow, where the
-      // top is brighter than everything around it). The side then lies beyond the face's edge.
-      // The face's edge inside is then sought with the face's polarity (the reversed edge's
-      // blur runs on a few pixels inward).
-      double face_polarity = 0.0;
-      const auto side_support = [&](const Frame& g) {
-        if (face_polarity == 0.0) return SideSupport(probe, g, k, options);
-        Eigen::Vector2d a, b;
-        return SideSegment(g, k, options, &a, &b)
-                   ? probe.PolarSupport(a, b, s.sign * g.axis[s.axis], face_polarity, step)
-                   : 0.0;
-      };
-      if (options.end_edge_polarity && before >= options.min_end_support) {
-        if (const double polarity =
-                NeighbourSidesPolarity(probe, f, k, options.corner_margin_mm, step);
-            polarity != 0.0) {
-          face_polarity = polarity;
-          const double polar = BestNearSide(f, k, 1.0, options.step_mm, side_support);
-          if (polar < options.min_end_support) {
-            ++report.end_edge_reversed;
-            before = polar;
-          } else {
-            face_polarity = 0.0;
-          }
-        }
-      }
-      // Where the outward search starts (mm past the side).
-      double search_from = 1.0;
-      bool line_at_side = false;  // the side lies at a line across the face
-      const bool at_edge = before >= options.min_end_support;
-      if (at_edge) {
-        // A side at an image edge ends the face unless the face's two sides go on past that
-        // edge in the image: then the edge is a line across the face - a taller neighbour's
-        // shadow's edge, a mark - and the face's end lies further out (`--min-gap 0`, seed
-        // 69049: the far third of a 64 x 49 mm top in a neighbour's shadow, its sides plain
-        // against the darker table, seen 51 mm long, 6.3 mm off). Sampled from the corner
-        // margin past the edge over kSidesPastMm.
-        if (!options.look_past_lines_on_face) continue;
-        const double past_from = f.half[s.axis] + 1.0 + options.corner_margin_mm;
-        if (NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                  options.corner_margin_mm, neighbour_walls(k))
-                .value_or(0.0) < options.min_side_support) {
-          continue;
-        }
-        ++report.line_on_face;
-        line_at_side = true;
-        // Past the base edge of a wall that would stand on this edge, by kPastWallMm.
-        search_from = std::max(1.0 + options.corner_margin_mm, wall_seen_mm(k) + kPastWallMm);
-      }
-      // A side that lies beyond the face's edge (points at the top height past it: mismatches,
-      // a neighbour's points joined to the part) has no edge under it either, but the face's
-      // edge lies inside it: moving it out would stretch the top further (default seeds 65019,
-      // 65086: tops already 3.7 and 4.2 mm too wide found the walls' base edges beyond). It moves
-      // in to that edge instead, when few of the top's points lie beyond it (default 85156: a
-      // 43 x 36 mm top stretched 9.7 mm by a taller neighbour's points joined to it).
-      double inside = 0.0;
-      for (double e = -1.0 - step;
-           !at_edge && e >= -options.max_inward_mm - 1e-9 && admissible(k, e); e -= step) {
-        if (side_support(Extended(f, k, e)) >= options.min_end_support) {
-          inside = e;
-          break;
-        }
-      }
-      if (inside < 0.0) {
-        ++report.edge_inside;
-        const double best = strongest_line(k, inside);
-        const Frame g = Extended(f, k, best);
-        // The face's sides going on past that edge in the image make it a line on the face (a
-        // neighbour's shadow, a mark), not the face's end (default 95059: the arc of a
-        // neighbour's shadow across a box's end, where the points stopped, pulled the top 4 mm
-        // further short).
-        // Sampled from the corner margin past the edge (a corner's blur runs on along its sides)
-        // to the side as it was, and at least 4 mm: a short pull-in leaves little to sample, and
-        // a face that goes on past the edge goes on past the side as well.
-        const double past_from = f.half[s.axis] + best + options.corner_margin_mm;
-        const std::optional<double> sides_past_edge = NeighbourSidesSupport(
-            probe, f, k, past_from, std::max(f.half[s.axis], past_from + kSidesPastMm), step,
-            std::nullopt, neighbour_walls(k));
-        if (FractionBeyondSide(g, k, pose->height_mm, top_layer_mm, points, pose->point_indices) <=
-                options.max_cut_fraction &&
-            sides_past_edge.value_or(0.0) < options.min_side_support) {
-          report.extension_mm[k] += best;
-          f = g;
-          continue;
-        }
-        // A line across the face just inside the side, the face's sides going on past it with
-        // the face's polarity: the face's end may lie further out (the points stopped near a
-        // shadow's edge, as above, a little past it; gap0 69049 seen through the scene's own
-        // cameras). Search out from the side.
-        if (!options.look_past_lines_on_face ||
-            NeighbourSidesSupport(probe, f, k, past_from, past_from + kSidesPastMm, step,
-                                  options.corner_margin_mm, neighbour_walls(k))
-                    .value_or(0.0) < options.min_side_support) {
-          continue;
-        }
-        ++report.line_on_face;
-        line_at_side = true;
-        search_from = std::max(search_from, best + wall_seen_mm(k) + kPastWallMm);
-      }
-      const double from = f.half[s.axis];
-      double found = 0.0;
-      for (double e = search_from; e <= options.max_extension_mm + 1e-9 && admissible(k, e);
-           e += step) {
-        const Frame g = Extended(f, k, e);
-        bool blocked = false;
-        for (const Rectangle2D& other : others) blocked = blocked || Overlaps(g, other, 1.0);
-        if (blocked) break;
-        // The neighbouring sides from the old side (2 from - g.half from g's centre, which moved
-        // by half the extension) to the corner margin before the new one.
-        if (SideSupport(probe, g, k, options) >= options.min_end_support &&
-            NeighbourSidesSupport(
-                probe, g, k, 2.0 * from - g.half[s.axis], g.half[s.axis] - options.corner_margin_mm,
-                step, std::nullopt,
-                line_at_side ? neighbour_walls(k) : std::array<double, 2>{0.0, 0.0})
-                    .value_or(1.0) >= options.min_side_support) {
-          // The edge found may itself be a line across the face: the points stopped short of a
-          // neighbour's shadow's edge, and the face's sides go on past that edge with the
-          // face's polarity (gap0 239086: a top whose far 15 mm lie in a taller neighbour's
-          // shadow, stretched only to the shadow's edge, 7.7 mm off). The search goes on past
-          // the base edge of a wall that would stand on it.
-          const double past = g.half[s.axis] + 1.0 + options.corner_margin_mm;
-          if (options.look_past_lines_on_face &&
-              NeighbourSidesSupport(probe, g, k, past, past + kSidesPastMm, step,
-                                    options.corner_margin_mm, neighbour_walls(k))
-                      .value_or(0.0) >= options.min_side_support) {
-            if (!line_at_side) ++report.line_on_face;
-            line_at_side = true;
-            e += wall_seen_mm(k) + kPastWallMm;
-            continue;
-          }
-          found = e;
-          break;
-        }
-      }
-      // A side at a line across the face whose end was not found: the face goes on past it,
-      // nobody knows how far - unless the face's sides stop past the wall the camera sees
-      // beyond that side: then what went on in line with them was that wall, and the line is
-      // the face's end (default 155049: a 54 x 27 mm top beside its own end wall, seen 11 mm
-      // wide; found once its sides had moved onto the face's edges).
-      if (found <= 0.0) {
-        if (line_at_side && at_edge) {
-          const double past_wall = f.half[s.axis] + wall_seen_mm(k) + kPastWallMm;
-          if (!options.end_at_own_wall ||
-              NeighbourSidesSupport(probe, f, k, past_wall, past_wall + kSidesPastMm, step,
-                                    options.corner_margin_mm, neighbour_walls(k))
-                      .value_or(0.0) >= options.min_side_support) {
-            ++lines_unplaced;
-          }
-        }  // else counted below
-        continue;
-      }
-      const double best = strongest_line(k, found);
-      const Frame g = Extended(f, k, best);
-      // Lower points seen through the added strip (1.5 mm inside its sides): the table or a
-      // lower part where the face would hide them.
-      constexpr double kInsideMm = 1.5;
-      const double low = pose->height_mm - 2.0 * top_layer_mm;
-      if (LowerPointsSeenThroughStrip(g, k, 2.0 * from - g.half[s.axis] + kInsideMm,
-                                      g.half[s.axis] - kInsideMm, kInsideMm, pose->height_mm, low,
-                                      points, weak,
-                                      camera_centres) > options.max_contradicting_points) {
-        ++report.refused_by_points;
-        if (line_at_side && at_edge) ++lines_unplaced;  // else counted below
-        continue;
-      }
-      report.extension_mm[k] += best;
-      f = g;
-    }
-  }
-  for (int k = 0; k < 4; ++k) {
-    if (report.end_support_before[k] < options.min_end_support && report.extension_mm[k] == 0.0) {
-      ++report.unplaced_sides;
-    }
-  }
-  report.unplaced_sides += lines_unplaced;
-  if (first.moved_mm() != 0.0) {
-    // After a second pass: the sides' support before any move, and whatever either pass
-    // found, with the unplaced sides of where they now lie.
-    for (int k = 0; k < 4; ++k) report.end_support_before[k] = first.end_support_before[k];
-    report.refused_by_points = std::max(report.refused_by_points, first.refused_by_points);
-    report.edge_inside = std::max(report.edge_inside, first.edge_inside);
-    report.line_on_face = std::max(report.line_on_face, first.line_on_face);
-    report.end_edge_reversed = std::max(report.end_edge_reversed, first.end_edge_reversed);
-  }
+  int lines_unplaced_ = 0;
+};
+
+}  // namespace
+
+TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const TopFaceEdgeInputs& inputs,
+                                        const TopFaceEdgeOptions& options) {
+  if (pose->round || inputs.gradient_x.empty()) return TopFaceEdgeReport{};
+  TopFit fit(*pose, inputs, options);
+  const TopFaceEdgeReport report = fit.FitPasses();
   if (report.moved_mm() == 0.0) return report;
+  const Frame& f = fit.frame();
   if (f.half[1] > f.half[0]) {
     // The moves made the short side the long one: the yaw (the long side's direction) would
-    // turn 90 degrees on edges that do not settle which side is longer (default seed 85026: a
-    // 75 x 62 mm top of two touching parts). Keep the points' rectangle.
+    // turn 90 degrees on edges that do not settle which side is longer. Keep the points'
+    // rectangle.
     TopFaceEdgeReport kept;
     kept.swapped_sides_refused = true;
     for (int k = 0; k < 4; ++k) {
       kept.end_support_before[k] = report.end_support_before[k];
       if (kept.end_support_before[k] < options.min_end_support) ++kept.unplaced_sides;
     }
-    kept.unplaced_sides += lines_unplaced;
+    kept.unplaced_sides += fit.lines_unplaced();
     return kept;
   }
   Rectangle2D& r = pose->top_rectangle;
   r.centre = f.centre;
   r.length = 2.0 * f.half[0];
   r.width = 2.0 * f.half[1];
-  if (centroid_from_rectangle) {
+  if (inputs.centroid_from_rectangle) {
     pose->centroid.x() = r.centre.x();
     pose->centroid.y() = r.centre.y();
   }
@@ -715,6 +756,117 @@ double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& 
   return best_turn;
 }
 
+namespace {
+
+// The sides across a gap are sought, and the facing ends, each at its best offset within this
+// distance (mm) of the rectangle's side: the pieces' points scatter about the face's outline.
+constexpr double kGapSearchMm = 2.0;
+
+// A piece's extent [lo, hi] (mm) along axis `axis` of frame f, from f's centre.
+std::pair<double, double> ExtentAlong(const Frame& f, const std::vector<Eigen::Vector2d>& piece,
+                                      int axis) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Eigen::Vector2d& p : piece) {
+    const double t = (p - f.centre).dot(f.axis[axis]);
+    lo = std::min(lo, t);
+    hi = std::max(hi, t);
+  }
+  return {lo, hi};
+}
+
+// The axis of the joint frame f along which two pieces lie apart by the widest gap, and that
+// gap [near, far] (mm from f's centre); -1 when they overlap along both axes.
+int WidestGap(const Frame& f, const std::vector<Eigen::Vector2d>& piece_a,
+              const std::vector<Eigen::Vector2d>& piece_b, double* near, double* far) {
+  int along = -1;
+  *near = 0.0;
+  *far = 0.0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const auto [a_lo, a_hi] = ExtentAlong(f, piece_a, axis);
+    const auto [b_lo, b_hi] = ExtentAlong(f, piece_b, axis);
+    const bool a_first = a_hi < b_lo;
+    const double from = a_first ? a_hi : b_hi;
+    const double to = a_first ? b_lo : a_lo;
+    if (to - from > *far - *near) {
+      along = axis;
+      *near = from;
+      *far = to;
+    }
+  }
+  return along;
+}
+
+// GapBetweenPieces::sides_support: the joint frame's two sides across the gap [near, far]
+// along axis `along`, each side with the polarity it shows over its whole length (the pieces'
+// stretches included; a piece may be an edge strip too thin to show it alone).
+double SidesAcrossGapSupport(const EdgeProbe& probe, const Frame& f, int along, double near,
+                             double far, const TopFaceEdgeOptions& options) {
+  const double margin = options.corner_margin_mm;
+  const double step = options.step_mm;
+  const int across_axis = 1 - along;
+  const auto at = [&](double t_along, double t_across) {
+    return Eigen::Vector2d(f.centre + t_along * f.axis[along] + t_across * f.axis[across_axis]);
+  };
+  double support = 0.0;
+  const double end = f.half[along] - margin;
+  for (double across : {-1.0, 1.0}) {
+    const Eigen::Vector2d outward = across * f.axis[across_axis];
+    for (double offset = -kGapSearchMm; offset <= kGapSearchMm + 1e-9; offset += step) {
+      const double line = across * (f.half[across_axis] + offset);
+      const double face = probe.MeanOutwardGradient(at(-end, line), at(end, line), outward, step);
+      if (face == 0.0) continue;
+      support = std::max(support, probe.PolarSupport(at(near + margin, line), at(far - margin, line),
+                                                     outward, face > 0.0 ? 1.0 : -1.0, step));
+    }
+  }
+  return support;
+}
+
+// The support, with `polarity`, of the side of a piece's own minimum-area rectangle that faces
+// `towards` (two boxes in a row need not share a yaw); 0 for a piece too thin to have an end.
+double FacingEndSupport(const EdgeProbe& probe, const std::vector<Eigen::Vector2d>& piece,
+                        const Eigen::Vector2d& towards, double polarity,
+                        const TopFaceEdgeOptions& options) {
+  const double margin = options.corner_margin_mm;
+  const double step = options.step_mm;
+  const Frame own = FrameOf(MinAreaRectangle(piece));
+  const Eigen::Vector2d to = towards - own.centre;
+  // The side whose outward normal points most towards the other piece.
+  int axis = 0;
+  double best_cosine = -2.0, sign = 1.0;
+  for (int k = 0; k < 2; ++k) {
+    for (double side_sign : {-1.0, 1.0}) {
+      const double cosine = side_sign * own.axis[k].dot(to.normalized());
+      if (cosine > best_cosine) {
+        best_cosine = cosine;
+        axis = k;
+        sign = side_sign;
+      }
+    }
+  }
+  const int other = 1 - axis;
+  const double reach = own.half[other] - margin;
+  if (reach < margin) return 0.0;
+  const Eigen::Vector2d outward = sign * own.axis[axis];
+  double support = 0.0;
+  for (double offset = -kGapSearchMm; offset <= kGapSearchMm + 1e-9; offset += step) {
+    const Eigen::Vector2d mid = own.centre + (own.half[axis] + offset) * outward;
+    support = std::max(support, probe.PolarSupport(mid - reach * own.axis[other],
+                                                   mid + reach * own.axis[other], outward,
+                                                   polarity, step));
+  }
+  return support;
+}
+
+// The mean of a piece's points.
+Eigen::Vector2d CentreOf(const std::vector<Eigen::Vector2d>& piece) {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : piece) centre += p / static_cast<double>(piece.size());
+  return centre;
+}
+
+}  // namespace
+
 std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
                                               const std::vector<Eigen::Vector2d>& piece_b,
                                               double height_mm, const Eigen::Matrix<double, 3, 4>& P,
@@ -724,96 +876,20 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
   std::vector<Eigen::Vector2d> joint = piece_a;
   joint.insert(joint.end(), piece_b.begin(), piece_b.end());
   const Frame f = FrameOf(MinAreaRectangle(joint));
-  // Each piece's extent along each axis of the joint rectangle (from its centre).
-  const auto extent = [&](const std::vector<Eigen::Vector2d>& piece, int axis) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (const Eigen::Vector2d& p : piece) {
-      const double t = (p - f.centre).dot(f.axis[axis]);
-      lo = std::min(lo, t);
-      hi = std::max(hi, t);
-    }
-    return std::pair<double, double>(lo, hi);
-  };
-  // The axis along which the pieces lie apart by the widest gap, and that gap [near, far].
-  int along = -1;
   double near = 0.0, far = 0.0;
-  for (int axis = 0; axis < 2; ++axis) {
-    const auto [a_lo, a_hi] = extent(piece_a, axis);
-    const auto [b_lo, b_hi] = extent(piece_b, axis);
-    const bool a_first = a_hi < b_lo;
-    const double from = a_first ? a_hi : b_hi;
-    const double to = a_first ? b_lo : a_lo;
-    if (to - from > far - near) {
-      along = axis;
-      near = from;
-      far = to;
-    }
+  const int along = WidestGap(f, piece_a, piece_b, &near, &far);
+  if (along < 0 || far - near - 2.0 * options.corner_margin_mm < 2.0 * options.step_mm) {
+    return std::nullopt;
   }
-  const double margin = options.corner_margin_mm;
-  const double step = options.step_mm;
-  if (along < 0 || far - near - 2.0 * margin < 2.0 * step) return std::nullopt;
   const EdgeProbe probe(P, gradient_x, gradient_y, height_mm, options.min_edge_gradient);
-  const int across_axis = 1 - along;
-  const auto at = [&](double t_along, double t_across) {
-    return Eigen::Vector2d(f.centre + t_along * f.axis[along] + t_across * f.axis[across_axis]);
-  };
   GapBetweenPieces gap;
-  // The sides across the gap, each at its best offset within kSearchMm of the rectangle's side
-  // (the pieces' points scatter about the face's outline).
-  constexpr double kSearchMm = 2.0;
-  const double end = f.half[along] - margin;
-  for (double across : {-1.0, 1.0}) {
-    const Eigen::Vector2d outward = across * f.axis[across_axis];
-    for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
-      const double line = across * (f.half[across_axis] + offset);
-      // The side's polarity: its mean over the whole side, the pieces' stretches (often
-      // longer than the gap) included; a piece may be an edge strip too thin to show it alone.
-      const double face = probe.MeanOutwardGradient(at(-end, line), at(end, line), outward, step);
-      if (face == 0.0) continue;
-      gap.sides_support = std::max(
-          gap.sides_support, probe.PolarSupport(at(near + margin, line), at(far - margin, line),
-                                                outward, face > 0.0 ? 1.0 : -1.0, step));
-    }
-  }
-  // The facing ends: the side of each piece's own minimum-area rectangle that faces the other
-  // piece (two boxes in a row need not share a yaw), each at its best offset within kSearchMm,
-  // both faces brighter than the gap (or both darker).
-  const auto facing_end = [&](const std::vector<Eigen::Vector2d>& piece, const Eigen::Vector2d& towards,
-                              double polarity) {
-    const Frame own = FrameOf(MinAreaRectangle(piece));
-    const Eigen::Vector2d to = towards - own.centre;
-    // The side whose outward normal points most towards the other piece.
-    int axis = 0;
-    double best_cosine = -2.0, sign = 1.0;
-    for (int k = 0; k < 2; ++k) {
-      for (double side_sign : {-1.0, 1.0}) {
-        const double cosine = side_sign * own.axis[k].dot(to.normalized());
-        if (cosine > best_cosine) {
-          best_cosine = cosine;
-          axis = k;
-          sign = side_sign;
-        }
-      }
-    }
-    const int other = 1 - axis;
-    const double reach = own.half[other] - margin;
-    if (reach < margin) return 0.0;  // a thin piece's end is no edge
-    const Eigen::Vector2d outward = sign * own.axis[axis];
-    double support = 0.0;
-    for (double offset = -kSearchMm; offset <= kSearchMm + 1e-9; offset += step) {
-      const Eigen::Vector2d mid = own.centre + (own.half[axis] + offset) * outward;
-      support = std::max(support, probe.PolarSupport(mid - reach * own.axis[other],
-                                                     mid + reach * own.axis[other], outward,
-                                                     polarity, step));
-    }
-    return support;
-  };
-  Eigen::Vector2d centre_a = Eigen::Vector2d::Zero(), centre_b = Eigen::Vector2d::Zero();
-  for (const Eigen::Vector2d& p : piece_a) centre_a += p / static_cast<double>(piece_a.size());
-  for (const Eigen::Vector2d& p : piece_b) centre_b += p / static_cast<double>(piece_b.size());
+  gap.sides_support = SidesAcrossGapSupport(probe, f, along, near, far, options);
+  // The facing ends, both faces brighter than the gap (or both darker).
+  const Eigen::Vector2d centre_a = CentreOf(piece_a), centre_b = CentreOf(piece_b);
   for (double polarity : {-1.0, 1.0}) {
-    gap.ends_support = std::max(gap.ends_support, std::min(facing_end(piece_a, centre_b, polarity),
-                                                           facing_end(piece_b, centre_a, polarity)));
+    gap.ends_support =
+        std::max(gap.ends_support, std::min(FacingEndSupport(probe, piece_a, centre_b, polarity, options),
+                                            FacingEndSupport(probe, piece_b, centre_a, polarity, options)));
   }
   return gap;
 }

@@ -1,8 +1,7 @@
 #pragma once
 // A box's top face completed from one image's edges. The matched points outline a plain top
 // face only where its edges cross the epipolar lines well: an end edge along them gives weak or
-// wrong matches and the face's rectangle stops short of it (render seed 85011, default profile:
-// a 67 x 36 mm top seen 58 mm long, its centre 4.2 mm off), although the image shows that edge
+// wrong matches and the face's rectangle stops short of it, although the image shows that edge
 // plainly. Knowing the face's height, each side of the rectangle is pushed outward, at that
 // height, to where the image shows a straight edge across the face with the two neighbouring
 // sides continuing up to it - the face's outline, model-based verification in the manner of
@@ -62,24 +61,25 @@ struct TopFaceEdgeOptions {
   /// edge, a mark), and the face's end is the next edge out that they reach, under the tests
   /// above, at least 3 mm past the base edge of a wall the camera would see on that line. Past
   /// such a line each side's line may lie out to the wall the camera sees beside that side
-  /// (plus 1 mm): in a shadow the face and that wall can be equally dark (default 259055). An
-  /// edge found on the way out is looked past in the same way (gap0 239086), and a side at
-  /// such a line whose end is not found counts in TopFaceEdgeReport::unplaced_sides.
+  /// (plus 1 mm): in a shadow the face and that wall can be equally dark. An edge found on the
+  /// way out is looked past in the same way, and a side at such a line whose end is not found
+  /// counts in TopFaceEdgeReport::unplaced_sides. ASideAtAShadowsEdgeAcrossTheFaceMovesOutToTheFacesEnd,
+  /// InAShadowASidesEdgeMayBeItsWallsBase (tests/vision/top_face_edges_test.cc).
   bool look_past_lines_on_face = true;
   /// A side counts as at an image edge only when that edge has the polarity the face's outline
   /// shows along its two neighbouring sides (where they agree): the face brighter than what
   /// lies around it, or darker. An edge of the opposite polarity under a side is another
-  /// outline (a shadow's far edge on the ground, matched at the top's height: gap0 249002, a
-  /// 45 mm wide top seen 58 mm wide, 6.6 mm off), and the side lies beyond the face's edge.
+  /// outline (a shadow's far edge on the ground, matched at the top's height), and the side lies
+  /// beyond the face's edge. AShadowsFarEdgeIsNoEndOfTheFace.
   bool end_edge_polarity = true;
   /// When the sides move, test them all again from where they now lie: each side's test reads
-  /// its neighbouring sides' lines, which may move after it (gap0 299057: a top's end at a
-  /// shadow's edge tested while its sides lay 2-5 mm off the face's edges).
+  /// its neighbouring sides' lines, which may move after it. ABoxTopsSidesAreTestedAgainWhereTheyMoved
+  /// (tests/vision/position_sensing_test.cc).
   bool second_pass = true;
   /// A side at a line across the face whose end the search does not find counts as unplaced
   /// only when the face's sides go on past the wall the camera sees beyond it (by 3 mm, over
   /// 4 mm): where they stop there, what went on in line with them was the face's own end
-  /// wall, and the side is the face's end (default 155049).
+  /// wall, and the side is the face's end. ABoxTopsEndBesideItsOwnWallIsPlaced.
   bool end_at_own_wall = true;
   /// TurnTopToImageEdges: the largest turn tried (degrees either way; 0 disables), its step,
   /// and the gain in gradient along the outline a turn needs over the unturned rectangle.
@@ -123,23 +123,32 @@ double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& 
                            const cv::Mat& gradient_x, const cv::Mat& gradient_y,
                            bool yaw_from_rectangle, const TopFaceEdgeOptions& options = {});
 
+/// What ExtendTopToImageEdges reads besides the pose: one image, the other parts' tops and the
+/// triangulated points (for the occlusion test), and the limits of the top.
+struct TopFaceEdgeInputs {
+  const Eigen::Matrix<double, 3, 4>& P;  ///< the image's 3 x 4 projection (world mm -> px)
+  const cv::Mat& gradient_x;  ///< the image's 3 x 3 Sobel gradient in x (CV_32F)
+  const cv::Mat& gradient_y;  ///< ... and in y
+  /// The other parts' tops (table plane; a round one as its circle's square): no side enters
+  /// one (1 mm apart).
+  const std::vector<Rectangle2D>& others;
+  /// All triangulated points (world mm) and which are weak; the pose's point_indices index them.
+  const std::vector<Eigen::Vector3d>& points;
+  const std::vector<bool>& weak;
+  /// The centres (world mm) of the cameras that saw the points: a point seen through an
+  /// extension from below the top contradicts it.
+  const std::vector<Eigen::Vector3d>& camera_centres;
+  double top_layer_mm;  ///< ObjectPoseOptions::top_layer_mm: points this near the top are on it
+  double max_length_mm;  ///< no top grows longer than this (mm; the longest part)
+  bool centroid_from_rectangle;  ///< move the pose's centroid x, y with the rectangle
+};
+
 /// Moves the sides of `pose`'s top rectangle (not round poses) in or out to the face's edges in
-/// one image (seen through the 3 x 4 projection `P`; `gradient_x`, `gradient_y` its 3 x 3
-/// Sobel gradients, CV_32F; see TopFaceEdgeOptions), never into another part's rectangle (`others`, table plane, 1 mm apart) and never beyond
-/// `max_length_mm`. `points`/`weak` are all triangulated points and `camera_centres` the
-/// cameras that saw them, for the occlusion test; the pose's own `point_indices` into them
-/// decide whether a side may move in. Updates the rectangle and, when
+/// one image (see TopFaceEdgeOptions and TopFaceEdgeInputs). Updates the rectangle and, when
 /// `centroid_from_rectangle`, the centroid's x, y; the yaw does not change here
 /// (TurnTopToImageEdges turns it; moves that would make the short side the long one are all
-/// undone).
-TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
-                                        const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                        const std::vector<Rectangle2D>& others,
-                                        const std::vector<Eigen::Vector3d>& points,
-                                        const std::vector<bool>& weak,
-                                        const std::vector<Eigen::Vector3d>& camera_centres,
-                                        double top_layer_mm, double max_length_mm,
-                                        bool centroid_from_rectangle,
+/// undone). Covered by tests/vision/top_face_edges_test.cc.
+TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const TopFaceEdgeInputs& inputs,
                                         const TopFaceEdgeOptions& options = {});
 
 /// What one image shows between two pieces of top-face points at one height that lie apart
@@ -164,8 +173,8 @@ struct GapBetweenPieces {
 /// Looks, in one image seen through `P` (`gradient_x`, `gradient_y` its 3 x 3 Sobel gradients),
 /// at the gap between two pieces of top-face points (table plane, mm) at `height_mm`; nullopt
 /// when they do not lie apart along an axis of their joint rectangle by more than twice the
-/// corner margin. Default seed 155183: boxes 47 x 32 and 61 x 42 mm, 50 and 48 mm tall, 17 mm
-/// apart in a row, joined into one 126 x 43 mm top: sides across the gap 0, ends 1.
+/// corner margin. Two boxes apart in a row show sides across the gap near 0 and ends near 1
+/// (TwoBoxesThatTheImageShowsApartStayTwo).
 std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>& piece_a,
                                               const std::vector<Eigen::Vector2d>& piece_b,
                                               double height_mm, const Eigen::Matrix<double, 3, 4>& P,

@@ -108,9 +108,16 @@ ObjectPose CutPose(double height) {
 
 TopFaceEdgeReport Extend(const DrawnTop& d, ObjectPose* pose, const std::vector<Rectangle2D>& others = {},
                          const std::vector<Eigen::Vector3d>& points = {}) {
-  return ExtendTopToImageEdges(pose, d.P, d.gradient_x, d.gradient_y, others, points,
-                               std::vector<bool>(points.size(), false), {d.camera_centre}, 5.0, 95.0,
-                               true);
+  return ExtendTopToImageEdges(pose, {d.P,
+                                      d.gradient_x,
+                                      d.gradient_y,
+                                      others,
+                                      points,
+                                      std::vector<bool>(points.size(), false),
+                                      {d.camera_centre},
+                                      5.0,
+                                      95.0,
+                                      true});
 }
 
 TEST(TopFaceEdges, ACutEndMovesOutToTheFacesEdge) {
@@ -143,8 +150,9 @@ TEST(TopFaceEdges, ASideAtAShadowsEdgeAcrossTheFaceMovesOutToTheFacesEnd) {
   ObjectPose kept = CutPose(d.height);
   TopFaceEdgeOptions options;
   options.look_past_lines_on_face = false;
-  ExtendTopToImageEdges(&kept, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0,
-                        95.0, true, options);
+  ExtendTopToImageEdges(
+      &kept, {d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0, 95.0, true},
+      options);
   EXPECT_DOUBLE_EQ(kept.top_rectangle.length, 48.0);
 }
 
@@ -168,7 +176,8 @@ TEST(TopFaceEdges, InAShadowASidesEdgeMayBeItsWallsBase) {
   short_reach.max_extension_mm = 5.0;
   ObjectPose kept = CutPose(d.height);
   const TopFaceEdgeReport unplaced = ExtendTopToImageEdges(
-      &kept, d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0, 95.0, true, short_reach);
+      &kept, {d.P, d.gradient_x, d.gradient_y, {}, {}, {}, {d.camera_centre}, 5.0, 95.0, true},
+      short_reach);
   EXPECT_DOUBLE_EQ(kept.top_rectangle.length, 48.0);
   EXPECT_EQ(unplaced.line_on_face, 1);
   EXPECT_EQ(unplaced.unplaced_sides, 1);
@@ -304,9 +313,18 @@ TEST(TopFaceEdges, ASideBeyondTheFacesEdgeIsNotMovedOut) {
   EXPECT_DOUBLE_EQ(s.pose.top_rectangle.length, 64.0);
   TopFaceEdgeOptions options;
   options.max_inward_mm = 0.0;
-  ExtendTopToImageEdges(&outward_only.pose, d.P, d.gradient_x, d.gradient_y, {}, outward_only.points,
-                        std::vector<bool>(outward_only.points.size(), false), {d.camera_centre}, 5.0,
-                        95.0, true, options);
+  ExtendTopToImageEdges(&outward_only.pose,
+                        {d.P,
+                         d.gradient_x,
+                         d.gradient_y,
+                         {},
+                         outward_only.points,
+                         std::vector<bool>(outward_only.points.size(), false),
+                         {d.camera_centre},
+                         5.0,
+                         95.0,
+                         true},
+                        options);
   EXPECT_GT(outward_only.pose.top_rectangle.length, 68.0) << "the failure the inward search exists for";
 }
 
@@ -336,9 +354,18 @@ TEST(TopFaceEdges, AShadowsFarEdgeIsNoEndOfTheFace) {
   EXPECT_NEAR(s.pose.centroid.x(), 0.0, 0.5);
   TopFaceEdgeOptions options;
   options.end_edge_polarity = false;
-  ExtendTopToImageEdges(&without.pose, d.P, d.gradient_x, d.gradient_y, {}, without.points,
-                        std::vector<bool>(without.points.size(), false), {d.camera_centre}, 5.0,
-                        95.0, true, options);
+  ExtendTopToImageEdges(&without.pose,
+                        {d.P,
+                         d.gradient_x,
+                         d.gradient_y,
+                         {},
+                         without.points,
+                         std::vector<bool>(without.points.size(), false),
+                         {d.camera_centre},
+                         5.0,
+                         95.0,
+                         true},
+                        options);
   EXPECT_DOUBLE_EQ(without.pose.top_rectangle.length, 72.0) << "the failure the test exists for";
   // The face's own end is an edge of the face's polarity: a whole top keeps its four sides.
   ObjectPose whole = CutPose(d.height);
