@@ -54,11 +54,12 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Ma
   return points;
 }
 
-CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  if (const std::string problem = options.Check(); !problem.empty()) {
-    throw std::runtime_error(problem);
-  }
+namespace {
+
+const char* const kCameraNames[2] = {"left", "right"};
+
+// The board's inner corners in its own frame (mm, z = 0), row-major.
+std::vector<cv::Point3f> BoardPoints(const ChessboardOptions& options) {
   std::vector<cv::Point3f> board;
   for (int r = 0; r < options.rows; ++r) {
     for (int c = 0; c < options.cols; ++c) {
@@ -66,95 +67,112 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
                          static_cast<float>(r * options.square_mm), 0.f);
     }
   }
+  return board;
+}
+
+// The pairs in which both images show the board: its points and each camera's corners per
+// view, the images where it was not found, each camera's image size and first used image.
+struct ChessboardViews {
   std::vector<std::vector<cv::Point3f>> object_points;
   std::vector<std::vector<cv::Point2f>> corners[2];
   std::vector<std::string> skipped;
   cv::Size image_size[2];
   cv::Mat first_image[2];
-  const char* names[2] = {"left", "right"};
+};
+
+// One camera's image of a pair, checked to exist and to be the size of its first image.
+cv::Mat ReadPairImage(const std::string& path, int camera, cv::Size* image_size) {
+  if (!std::filesystem::is_regular_file(path)) {
+    throw std::runtime_error("chessboard image '" + path + "' does not exist");
+  }
+  cv::Mat image = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
+  if (image_size->area() == 0) {
+    *image_size = image.size();
+  } else if (image.size() != *image_size) {
+    throw std::runtime_error("image '" + path + "' differs in size from the first " +
+                             kCameraNames[camera] + " image");
+  }
+  return image;
+}
+
+// Detects the board in every pair; throws when fewer than min_pairs pairs show it.
+ChessboardViews CollectViews(const ChessboardOptions& options,
+                             const std::vector<cv::Point3f>& board) {
+  ChessboardViews views;
   for (size_t pair = 0; pair < options.left_images.size(); ++pair) {
     std::optional<std::vector<Eigen::Vector2d>> found[2];
     cv::Mat images[2];
     for (int camera = 0; camera < 2; ++camera) {
       const std::string& path =
           camera == 0 ? options.left_images[pair] : options.right_images[pair];
-      if (!std::filesystem::is_regular_file(path)) {
-        throw std::runtime_error("chessboard image '" + path + "' does not exist");
-      }
-      images[camera] = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
-      if (image_size[camera].area() == 0) {
-        image_size[camera] = images[camera].size();
-      } else if (images[camera].size() != image_size[camera]) {
-        throw std::runtime_error("image '" + path + "' differs in size from the first " +
-                                 names[camera] + " image");
-      }
+      images[camera] = ReadPairImage(path, camera, &views.image_size[camera]);
       found[camera] = DetectChessboardCorners(images[camera], options.rows, options.cols,
                                               options.subpixel_window);
-      if (!found[camera]) skipped.push_back(path);
+      if (!found[camera]) views.skipped.push_back(path);
     }
     if (!found[0] || !found[1]) continue;
-    object_points.push_back(board);
+    views.object_points.push_back(board);
     for (int camera = 0; camera < 2; ++camera) {
       std::vector<cv::Point2f> view;
       for (const Eigen::Vector2d& p : *found[camera]) {
         view.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
       }
-      corners[camera].push_back(view);
-      if (first_image[camera].empty()) first_image[camera] = images[camera];
+      views.corners[camera].push_back(view);
+      if (views.first_image[camera].empty()) views.first_image[camera] = images[camera];
     }
   }
-  if (static_cast<int>(object_points.size()) < options.min_pairs) {
+  if (static_cast<int>(views.object_points.size()) < options.min_pairs) {
     throw std::runtime_error("the " + std::to_string(options.rows) + " x " +
                              std::to_string(options.cols) + " inner-corner board was found in " +
-                             std::to_string(object_points.size()) + " pair(s), need " +
+                             std::to_string(views.object_points.size()) + " pair(s), need " +
                              std::to_string(options.min_pairs) +
                              " (check --rows/--cols: inner corners, not squares)");
   }
+  return views;
+}
 
-  CalibrationResult result;
-  result.report.method = "chessboard";
-  result.report.num_views = static_cast<int>(object_points.size());
-  cv::Mat K[2], D[2];
-  double opencv_rms[2] = {0, 0};
-  for (int camera = 0; camera < 2; ++camera) {
-    std::vector<cv::Mat> rvecs, tvecs;
-    opencv_rms[camera] = cv::calibrateCamera(object_points, corners[camera], image_size[camera],
-                                             K[camera], D[camera], rvecs, tvecs);
-    CameraCalibrationReport camera_report;
-    camera_report.camera = names[camera];
-    std::vector<Eigen::Vector2d> residuals;
-    for (size_t view = 0; view < object_points.size(); ++view) {
-      std::vector<cv::Point2f> projected;
-      cv::projectPoints(object_points[view], rvecs[view], tvecs[view], K[camera], D[camera],
-                        projected);
-      for (size_t i = 0; i < projected.size(); ++i) {
-        CalibrationObservation observation;
-        observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
-        observation.measured_px =
-            Eigen::Vector2d(corners[camera][view][i].x, corners[camera][view][i].y);
-        observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
-        observation.view = static_cast<int>(view);
-        observation.label = "r" + std::to_string(static_cast<int>(i) / options.cols) + "c" +
-                            std::to_string(static_cast<int>(i) % options.cols);
-        residuals.push_back(observation.reprojected_px - observation.measured_px);
-        camera_report.observations.push_back(observation);
-      }
+// One camera's intrinsics (cv::calibrateCamera, Zhang's method) into *K, *D, its RMS into *rms,
+// and its report: every corner measured and reprojected, and the first view's overlay.
+CameraCalibrationReport CalibrateOneCamera(const ChessboardViews& views, int camera,
+                                           const std::vector<cv::Point3f>& board, int cols,
+                                           cv::Mat* K, cv::Mat* D, double* rms) {
+  std::vector<cv::Mat> rvecs, tvecs;
+  *rms = cv::calibrateCamera(views.object_points, views.corners[camera], views.image_size[camera],
+                             *K, *D, rvecs, tvecs);
+  CameraCalibrationReport camera_report;
+  camera_report.camera = kCameraNames[camera];
+  std::vector<Eigen::Vector2d> residuals;
+  for (size_t view = 0; view < views.object_points.size(); ++view) {
+    std::vector<cv::Point2f> projected;
+    cv::projectPoints(views.object_points[view], rvecs[view], tvecs[view], *K, *D, projected);
+    for (size_t i = 0; i < projected.size(); ++i) {
+      CalibrationObservation observation;
+      observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
+      observation.measured_px = Eigen::Vector2d(views.corners[camera][view][i].x,
+                                                views.corners[camera][view][i].y);
+      observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
+      observation.view = static_cast<int>(view);
+      observation.label = "r" + std::to_string(static_cast<int>(i) / cols) + "c" +
+                          std::to_string(static_cast<int>(i) % cols);
+      residuals.push_back(observation.reprojected_px - observation.measured_px);
+      camera_report.observations.push_back(observation);
     }
-    camera_report.final = SummariseResiduals(residuals);
-    camera_report.linear = camera_report.final;
-    std::vector<CalibrationObservation> first_view;
-    for (const auto& o : camera_report.observations) {
-      if (o.view == 0) first_view.push_back(o);
-    }
-    camera_report.overlay = DrawCalibrationOverlay(first_image[camera], first_view);
-    result.report.cameras.push_back(std::move(camera_report));
   }
-  cv::Mat R, T, E, F;
-  const double stereo_rms = cv::stereoCalibrate(
-      object_points, corners[0], corners[1], K[0], D[0], K[1], D[1], image_size[0], R, T, E, F,
-      cv::CALIB_FIX_INTRINSIC,
-      cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
+  camera_report.final = SummariseResiduals(residuals);
+  camera_report.linear = camera_report.final;
+  std::vector<CalibrationObservation> first_view;
+  for (const auto& o : camera_report.observations) {
+    if (o.view == 0) first_view.push_back(o);
+  }
+  camera_report.overlay = DrawCalibrationOverlay(views.first_image[camera], first_view);
+  return camera_report;
+}
 
+// The stereo calibration from both cameras' intrinsics and the left-to-right pose R, T:
+// P1 = K1 [I | 0], P2 = K2 [R | T] (world frame = left camera, mm).
+StereoCalibration StereoFromIntrinsics(const cv::Mat (&K)[2], const cv::Mat (&D)[2],
+                                       const cv::Mat& R, const cv::Mat& T,
+                                       const cv::Size& image_size) {
   Intrinsics intrinsics;
   cv::cv2eigen(K[0], intrinsics.K1);
   cv::cv2eigen(K[1], intrinsics.K2);
@@ -162,46 +180,86 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
   intrinsics.D2.assign(D[1].begin<double>(), D[1].end<double>());
   cv::cv2eigen(R, intrinsics.R);
   cv::cv2eigen(T, intrinsics.T);
-  StereoCalibration& calibration = result.calibration;
+  StereoCalibration calibration;
   calibration.P1.leftCols<3>() = intrinsics.K1;
   calibration.P1.col(3).setZero();
   calibration.P2.leftCols<3>() = intrinsics.K2 * intrinsics.R;
   calibration.P2.col(3) = intrinsics.K2 * intrinsics.T;
   calibration.intrinsics = intrinsics;
-  calibration.image_width = image_size[0].width;
-  calibration.image_height = image_size[0].height;
+  calibration.image_width = image_size.width;
+  calibration.image_height = image_size.height;
   calibration.DeriveFromProjections();
-  result.report.cameras[0].camera_centre = calibration.C1;
-  result.report.cameras[1].camera_centre = calibration.C2;
+  return calibration;
+}
 
-  // Epipolar consistency on undistorted corners (P and F apply to undistorted pixels).
-  std::vector<Eigen::Vector2d> undistorted[2];
+// Every camera's corners undistorted (P and F apply to undistorted pixels).
+void UndistortCorners(const ChessboardViews& views, const cv::Mat (&K)[2], const cv::Mat (&D)[2],
+                      std::vector<Eigen::Vector2d> (&undistorted)[2]) {
   for (int camera = 0; camera < 2; ++camera) {
-    for (const auto& view : corners[camera]) {
+    for (const auto& view : views.corners[camera]) {
       std::vector<cv::Point2f> points;
       cv::undistortPoints(view, points, K[camera], D[camera], cv::noArray(), K[camera]);
       for (const cv::Point2f& p : points) undistorted[camera].emplace_back(p.x, p.y);
     }
   }
+}
+
+// The report's method-specific figures and notes.
+void AddChessboardReportExtras(const ChessboardOptions& options, const ChessboardViews& views,
+                               const double (&opencv_rms)[2], double stereo_rms,
+                               CalibrationReport* report) {
+  report->extra = {{"opencv_rms_left_px", opencv_rms[0]},
+                   {"opencv_rms_right_px", opencv_rms[1]},
+                   {"stereo_rms_px", stereo_rms},
+                   {"num_pairs", views.object_points.size()},
+                   {"skipped_images", views.skipped},
+                   {"rows", options.rows},
+                   {"cols", options.cols},
+                   {"square_mm", options.square_mm},
+                   {"world_frame", "left camera, mm"}};
+  report->notes.push_back(
+      "world frame = left camera frame (mm); P and F apply to "
+      "undistorted pixels (D1, D2 in CAL.yml)");
+  if (!views.skipped.empty()) {
+    report->notes.push_back(std::to_string(views.skipped.size()) +
+                            " image(s) without a detected board were skipped");
+  }
+}
+
+}  // namespace
+
+CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
+  const std::vector<cv::Point3f> board = BoardPoints(options);
+  const ChessboardViews views = CollectViews(options, board);
+  CalibrationResult result;
+  result.report.method = "chessboard";
+  result.report.num_views = static_cast<int>(views.object_points.size());
+  cv::Mat K[2], D[2];
+  double opencv_rms[2] = {0, 0};
+  for (int camera = 0; camera < 2; ++camera) {
+    result.report.cameras.push_back(CalibrateOneCamera(views, camera, board, options.cols,
+                                                       &K[camera], &D[camera],
+                                                       &opencv_rms[camera]));
+  }
+  cv::Mat R, T, E, F;
+  const double stereo_rms = cv::stereoCalibrate(
+      views.object_points, views.corners[0], views.corners[1], K[0], D[0], K[1], D[1],
+      views.image_size[0], R, T, E, F, cv::CALIB_FIX_INTRINSIC,
+      cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
+  result.calibration = StereoFromIntrinsics(K, D, R, T, views.image_size[0]);
+  StereoCalibration& calibration = result.calibration;
+  result.report.cameras[0].camera_centre = calibration.C1;
+  result.report.cameras[1].camera_centre = calibration.C2;
+  std::vector<Eigen::Vector2d> undistorted[2];
+  UndistortCorners(views, K, D, undistorted);
   result.report.num_epipolar_pairs = static_cast<int>(undistorted[0].size());
   result.report.mean_epipolar_distance_px =
       MeanEpipolarDistancePx(calibration.F, undistorted[0], undistorted[1]);
-  result.report.extra = {{"opencv_rms_left_px", opencv_rms[0]},
-                         {"opencv_rms_right_px", opencv_rms[1]},
-                         {"stereo_rms_px", stereo_rms},
-                         {"num_pairs", object_points.size()},
-                         {"skipped_images", skipped},
-                         {"rows", options.rows},
-                         {"cols", options.cols},
-                         {"square_mm", options.square_mm},
-                         {"world_frame", "left camera, mm"}};
-  result.report.notes.push_back(
-      "world frame = left camera frame (mm); P and F apply to "
-      "undistorted pixels (D1, D2 in CAL.yml)");
-  if (!skipped.empty()) {
-    result.report.notes.push_back(std::to_string(skipped.size()) +
-                                  " image(s) without a detected board were skipped");
-  }
+  AddChessboardReportExtras(options, views, opencv_rms, stereo_rms, &result.report);
   StoreErrorFigures(&result);
   calibration.error_figures.emplace_back("stereo_rms_px", stereo_rms);
   result.report.elapsed_ms =

@@ -101,16 +101,103 @@ std::string CircleCalibrationOptions::Check() const {
   return dlt.Check();
 }
 
-TargetDescription LoadTargetDirectory(const std::string& target_dir) {
-  const fs::path dir(target_dir);
-  if (!fs::is_directory(dir)) {
-    throw std::runtime_error("target folder '" + target_dir + "' does not exist");
+namespace {
+
+// "height <index>" in an error about a placement of `path`.
+std::string HeightWhere(const std::string& path, int index) {
+  return Where(path) + ": height " + std::to_string(index);
+}
+
+// The grid's rows and cols (whole numbers in [2, kMaxTargetRowsOrCols]), pitch, circle radius
+// (default 0.28 pitch) and circle polarity.
+void ReadTargetGrid(const cv::FileNode& root, const std::string& path, TargetDescription* target) {
+  // Range first: casting 1e12 to int is undefined, and rows x cols circles are searched for.
+  for (const auto& [key, count] : {std::pair<const char*, int*>{"rows", &target->grid.rows},
+                                   std::pair<const char*, int*>{"cols", &target->grid.cols}}) {
+    const double value = ReadNumber(root, key, path);
+    if (value < 2.0 || value > kMaxTargetRowsOrCols || value != std::floor(value)) {
+      throw std::runtime_error(Where(path) + ": '" + key + "' must be a whole number in [2, " +
+                               std::to_string(kMaxTargetRowsOrCols) + "] (is " +
+                               std::to_string(value) + ")");
+    }
+    *count = static_cast<int>(value);
   }
-  const fs::path yml = dir / "target.yml";
-  const std::string path = yml.string();
-  if (!fs::is_regular_file(yml)) {
-    throw std::runtime_error("target folder '" + target_dir + "' has no target.yml");
+  target->grid.pitch_mm = ReadLength(root, "pitch_mm", path);
+  if (!root["circle_radius_mm"].empty()) {
+    target->grid.circle_radius_mm = ReadLength(root, "circle_radius_mm", path);
+  } else {
+    target->grid.circle_radius_mm = 0.28 * target->grid.pitch_mm;
   }
+  if (!root["dark_circles"].empty()) {
+    target->dark_circles = ReadNumber(root, "dark_circles", path) != 0.0;
+  }
+}
+
+// A placement's 4x4 world_from_target as written.
+Eigen::Matrix4d ReadPoseMatrix(const cv::FileNode& height, const std::string& path, int index) {
+  if (const std::string problem = CheckMatrixNode(height["world_from_target"], 16);
+      !problem.empty()) {
+    throw std::runtime_error(HeightWhere(path, index) + " world_from_target " + problem);
+  }
+  cv::Mat matrix;
+  height["world_from_target"] >> matrix;
+  if (matrix.total() != 16) {
+    throw std::runtime_error(HeightWhere(path, index) + " world_from_target must be 4x4");
+  }
+  matrix = matrix.reshape(1, 4);
+  matrix.convertTo(matrix, CV_64F);
+  Eigen::Matrix4d pose;
+  cv::cv2eigen(matrix, pose);
+  return pose;
+}
+
+// A flat placement's pose from its origin_mm (3 numbers within +-1e7 mm) and yaw_deg (0 when
+// absent): WorldFromTargetFlat.
+Eigen::Matrix4d ReadFlatPose(const cv::FileNode& height, const std::string& path, int index) {
+  std::vector<double> origin;
+  if (height["origin_mm"].empty()) {
+    throw std::runtime_error(HeightWhere(path, index) +
+                             " needs 'origin_mm' (and 'yaw_deg') or 'world_from_target'");
+  }
+  if (const std::string problem = CheckMatrixNode(height["origin_mm"], 3); !problem.empty()) {
+    throw std::runtime_error(HeightWhere(path, index) + " origin_mm " + problem);
+  }
+  height["origin_mm"] >> origin;
+  if (origin.size() != 3) {
+    throw std::runtime_error(HeightWhere(path, index) + " origin_mm must have 3 numbers");
+  }
+  for (double coordinate : origin) {
+    if (!std::isfinite(coordinate) || std::abs(coordinate) > TextInputLimits{}.max_abs_mm) {
+      throw std::runtime_error(HeightWhere(path, index) +
+                               " origin_mm has a non-finite value or one beyond +-1e7 mm");
+    }
+  }
+  const double yaw_deg = height["yaw_deg"].empty() ? 0.0 : ReadNumber(height, "yaw_deg", path);
+  return WorldFromTargetFlat(Eigen::Vector3d(origin[0], origin[1], origin[2]), yaw_deg);
+}
+
+// One entry of 'heights': its two images (relative to the folder) and its pose, finite and
+// within +-1e7 mm.
+TargetPlacement ReadPlacement(const cv::FileNode& height, const fs::path& dir,
+                              const std::string& path, int index) {
+  if (!height.isMap()) throw std::runtime_error(HeightWhere(path, index) + " is not a map");
+  TargetPlacement placement;
+  placement.left_image = ResolveImage(height, "left", dir, path, index);
+  placement.right_image = ResolveImage(height, "right", dir, path, index);
+  placement.world_from_target = !height["world_from_target"].empty()
+                                    ? ReadPoseMatrix(height, path, index)
+                                    : ReadFlatPose(height, path, index);
+  if (!placement.world_from_target.allFinite() ||
+      placement.world_from_target.block<3, 1>(0, 3).cwiseAbs().maxCoeff() >
+          TextInputLimits{}.max_abs_mm) {
+    throw std::runtime_error(HeightWhere(path, index) +
+                             " pose has a non-finite value or a translation beyond +-1e7 mm");
+  }
+  return placement;
+}
+
+// target.yml's text (size-limited and checked) parsed; throws on OpenCV's errors as ours.
+TargetDescription ParseTargetYaml(const std::string& path, const fs::path& dir) {
   TargetDescription target;
   try {
     const std::string text = ReadTextFileWithin(path, "target.yml");
@@ -121,92 +208,34 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
                                       cv::FileStorage::FORMAT_YAML);
     if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");
     const cv::FileNode root = storage.root();
-    // Range first: casting 1e12 to int is undefined, and rows x cols circles are searched for.
-    for (const auto& [key, count] : {std::pair<const char*, int*>{"rows", &target.grid.rows},
-                                     std::pair<const char*, int*>{"cols", &target.grid.cols}}) {
-      const double value = ReadNumber(root, key, path);
-      if (value < 2.0 || value > kMaxTargetRowsOrCols || value != std::floor(value)) {
-        throw std::runtime_error(Where(path) + ": '" + key + "' must be a whole number in [2, " +
-                                 std::to_string(kMaxTargetRowsOrCols) + "] (is " +
-                                 std::to_string(value) + ")");
-      }
-      *count = static_cast<int>(value);
-    }
-    target.grid.pitch_mm = ReadLength(root, "pitch_mm", path);
-    if (!root["circle_radius_mm"].empty()) {
-      target.grid.circle_radius_mm = ReadLength(root, "circle_radius_mm", path);
-    } else {
-      target.grid.circle_radius_mm = 0.28 * target.grid.pitch_mm;
-    }
-    if (!root["dark_circles"].empty()) {
-      target.dark_circles = ReadNumber(root, "dark_circles", path) != 0.0;
-    }
+    ReadTargetGrid(root, path, &target);
     const cv::FileNode heights = root["heights"];
     if (heights.empty() || !heights.isSeq()) {
       throw std::runtime_error(Where(path) + ": 'heights' is missing or not a list");
     }
     int index = 0;
     for (cv::FileNodeIterator it = heights.begin(); it != heights.end(); ++it, ++index) {
-      const cv::FileNode height = *it;
-      if (!height.isMap()) {
-        throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                 " is not a map");
-      }
-      TargetPlacement placement;
-      placement.left_image = ResolveImage(height, "left", dir, path, index);
-      placement.right_image = ResolveImage(height, "right", dir, path, index);
-      if (!height["world_from_target"].empty()) {
-        if (const std::string problem = CheckMatrixNode(height["world_from_target"], 16);
-            !problem.empty()) {
-          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                   " world_from_target " + problem);
-        }
-        cv::Mat matrix;
-        height["world_from_target"] >> matrix;
-        if (matrix.total() != 16) {
-          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                   " world_from_target must be 4x4");
-        }
-        matrix = matrix.reshape(1, 4);
-        matrix.convertTo(matrix, CV_64F);
-        cv::cv2eigen(matrix, placement.world_from_target);
-      } else {
-        std::vector<double> origin;
-        if (height["origin_mm"].empty()) {
-          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                   " needs 'origin_mm' (and 'yaw_deg') or 'world_from_target'");
-        }
-        if (const std::string problem = CheckMatrixNode(height["origin_mm"], 3); !problem.empty()) {
-          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                   " origin_mm " + problem);
-        }
-        height["origin_mm"] >> origin;
-        if (origin.size() != 3) {
-          throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                   " origin_mm must have 3 numbers");
-        }
-        for (double coordinate : origin) {
-          if (!std::isfinite(coordinate) || std::abs(coordinate) > TextInputLimits{}.max_abs_mm) {
-            throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                     " origin_mm has a non-finite value or one beyond +-1e7 mm");
-          }
-        }
-        const double yaw_deg =
-            height["yaw_deg"].empty() ? 0.0 : ReadNumber(height, "yaw_deg", path);
-        placement.world_from_target =
-            WorldFromTargetFlat(Eigen::Vector3d(origin[0], origin[1], origin[2]), yaw_deg);
-      }
-      if (!placement.world_from_target.allFinite() ||
-          placement.world_from_target.block<3, 1>(0, 3).cwiseAbs().maxCoeff() >
-              TextInputLimits{}.max_abs_mm) {
-        throw std::runtime_error(Where(path) + ": height " + std::to_string(index) +
-                                 " pose has a non-finite value or a translation beyond +-1e7 mm");
-      }
-      target.placements.push_back(placement);
+      target.placements.push_back(ReadPlacement(*it, dir, path, index));
     }
   } catch (const cv::Exception& e) {
     throw std::runtime_error(Where(path) + " is not valid OpenCV YAML: " + e.err);
   }
+  return target;
+}
+
+}  // namespace
+
+TargetDescription LoadTargetDirectory(const std::string& target_dir) {
+  const fs::path dir(target_dir);
+  if (!fs::is_directory(dir)) {
+    throw std::runtime_error("target folder '" + target_dir + "' does not exist");
+  }
+  const fs::path yml = dir / "target.yml";
+  const std::string path = yml.string();
+  if (!fs::is_regular_file(yml)) {
+    throw std::runtime_error("target folder '" + target_dir + "' has no target.yml");
+  }
+  TargetDescription target = ParseTargetYaml(path, dir);
   if (const std::string problem = target.Check(); !problem.empty()) {
     throw std::runtime_error(Where(path) + ": " + problem);
   }
@@ -235,78 +264,126 @@ void SaveTargetDescription(const TargetDescription& target, const std::string& p
   });
 }
 
-GridRotationChoice ChooseGridRotations(
-    const std::vector<std::vector<Eigen::Vector3d>>& points3D_per_view,
-    const std::vector<std::vector<Eigen::Vector2d>>& canonical_centres_per_view,
-    const std::vector<std::vector<int>>& rotations) {
-  using Matrix12d = Eigen::Matrix<double, 12, 12>;
-  const size_t num_views = points3D_per_view.size();
-  const size_t num_rotations = rotations.size();
-  if (num_views == 0 || canonical_centres_per_view.size() != num_views || num_rotations == 0) {
-    throw std::invalid_argument("ChooseGridRotations: inconsistent input sizes");
+namespace {
+
+using Matrix12d = Eigen::Matrix<double, 12, 12>;
+
+// ChooseGridRotations' search over labelings (one grid rotation per view): the normalised DLT
+// system of every view under every rotation, summed per labeling (H&Z algorithm 7.1).
+class RotationSearch {
+ public:
+  RotationSearch(const std::vector<std::vector<Eigen::Vector3d>>& points3D_per_view,
+                 const std::vector<std::vector<Eigen::Vector2d>>& centres_per_view,
+                 const std::vector<std::vector<int>>& rotations)
+      : points3D_(points3D_per_view), centres_(centres_per_view), rotations_(rotations),
+        num_views_(points3D_per_view.size()), num_rotations_(rotations.size()) {
+    Normalise();
+    BuildNormalMatrices();
   }
+
+  GridRotationChoice Run() const {
+    const size_t num_seed = SeedViewCount();
+    const std::vector<std::vector<int>> combos = ExtendSeeds(Seeds(num_seed), num_seed);
+    const Scores scores = Score(combos);
+    std::vector<size_t> equivalent;
+    for (size_t c = 0; c < combos.size(); ++c) {
+      if (scores.rms[c] <= 1.25 * scores.best_rms + 0.02) equivalent.push_back(c);
+    }
+    if (equivalent.empty()) {  // nothing cheiral: fall back to all labelings
+      for (size_t c = 0; c < combos.size(); ++c) equivalent.push_back(c);
+    }
+    GridRotationChoice choice;
+    choice.algebraic_residual = scores.best_algebraic;
+    choice.reprojection_rms_px = scores.best_rms;
+    choice.num_equivalent = static_cast<int>(equivalent.size());
+    size_t chosen = equivalent.front();
+    for (size_t c : equivalent) {
+      if (scores.rms[c] < scores.rms[chosen]) chosen = c;
+    }
+    if (equivalent.size() > 1) {
+      choice.decided_by_image_rule = true;
+      chosen = ChooseByImageRule(equivalent, scores.cameras, chosen);
+    }
+    choice.rotation_per_view = combos[chosen];
+    return choice;
+  }
+
+ private:
+  // Each labeling's geometric reprojection RMS (px) of its linear DLT camera (+inf when not
+  // cheiral), the cameras, and the best RMS with its algebraic residual.
+  struct Scores {
+    std::vector<double> rms;
+    std::vector<ProjectionMatrix> cameras;
+    double best_rms = std::numeric_limits<double>::infinity();
+    double best_algebraic = std::numeric_limits<double>::infinity();
+  };
+
   // One normalisation for all labelings: the point sets do not depend on the labeling.
-  std::vector<Eigen::Vector3d> all_world;
-  std::vector<Eigen::Vector2d> all_image;
-  for (size_t v = 0; v < num_views; ++v) {
-    all_world.insert(all_world.end(), points3D_per_view[v].begin(), points3D_per_view[v].end());
-    all_image.insert(all_image.end(), canonical_centres_per_view[v].begin(),
-                     canonical_centres_per_view[v].end());
-  }
-  const Eigen::Matrix4d T_world = HartleyNormalisation3D(all_world);
-  const Eigen::Matrix3d T_image = HartleyNormalisation2D(all_image);
-  std::vector<std::vector<Matrix12d>> normal(num_views, std::vector<Matrix12d>(num_rotations));
-  for (size_t v = 0; v < num_views; ++v) {
-    const auto& world = points3D_per_view[v];
-    const auto& centres = canonical_centres_per_view[v];
-    std::vector<Eigen::Vector3d> world_normalised;
-    for (const auto& X : world)
-      world_normalised.push_back((T_world * X.homogeneous()).hnormalized());
-    for (size_t r = 0; r < num_rotations; ++r) {
-      std::vector<Eigen::Vector2d> image_normalised;
-      for (size_t i = 0; i < world.size(); ++i) {
-        image_normalised.push_back(
-            (T_image * centres[static_cast<size_t>(rotations[r][i])].homogeneous()).hnormalized());
-      }
-      normal[v][r] = DltNormalMatrix(world_normalised, image_normalised);
+  void Normalise() {
+    for (size_t v = 0; v < num_views_; ++v) {
+      all_world_.insert(all_world_.end(), points3D_[v].begin(), points3D_[v].end());
+      all_image_.insert(all_image_.end(), centres_[v].begin(), centres_[v].end());
+    }
+    T_world_ = HartleyNormalisation3D(all_world_);
+    T_image_ = HartleyNormalisation2D(all_image_);
+    world_normalised_.resize(num_views_);
+    for (size_t v = 0; v < num_views_; ++v) {
+      for (const auto& X : points3D_[v]) world_normalised_[v].push_back(T_world_ * X.homogeneous());
     }
   }
 
-  std::vector<std::vector<Eigen::Vector4d>> world_normalised(num_views);
-  for (size_t v = 0; v < num_views; ++v) {
-    for (const auto& X : points3D_per_view[v])
-      world_normalised[v].push_back(T_world * X.homogeneous());
+  // normal_[v][r]: view v's DLT normal matrix with its centres turned by rotation r.
+  void BuildNormalMatrices() {
+    normal_.assign(num_views_, std::vector<Matrix12d>(num_rotations_));
+    for (size_t v = 0; v < num_views_; ++v) {
+      const auto& world = points3D_[v];
+      const auto& centres = centres_[v];
+      std::vector<Eigen::Vector3d> world_normalised;
+      for (const auto& X : world) {
+        world_normalised.push_back((T_world_ * X.homogeneous()).hnormalized());
+      }
+      for (size_t r = 0; r < num_rotations_; ++r) {
+        std::vector<Eigen::Vector2d> image_normalised;
+        for (size_t i = 0; i < world.size(); ++i) {
+          image_normalised.push_back(
+              (T_image_ * centres[static_cast<size_t>(rotations_[r][i])].homogeneous())
+                  .hnormalized());
+        }
+        normal_[v][r] = DltNormalMatrix(world_normalised, image_normalised);
+      }
+    }
   }
-  auto summed = [&](const std::vector<int>& combo) {
+
+  Matrix12d Summed(const std::vector<int>& combo) const {
     Matrix12d sum = Matrix12d::Zero();
-    for (size_t v = 0; v < combo.size(); ++v) sum += normal[v][static_cast<size_t>(combo[v])];
+    for (size_t v = 0; v < combo.size(); ++v) sum += normal_[v][static_cast<size_t>(combo[v])];
     return sum;
-  };
+  }
+
   // The algebraic residual of a labeling, or +infinity when its DLT camera does not see all the
   // points on one side (cheirality, H&Z 6.2.3). Needed: with only two heights, turning one
   // height's labels by 180 degrees fits a projective camera exactly, one that has that height
   // behind it.
-  auto residual_of = [&](const std::vector<int>& combo, Matrix12d* sum_out) {
-    const Matrix12d sum = summed(combo);
+  double ResidualOf(const std::vector<int>& combo, Matrix12d* sum_out) const {
+    const Matrix12d sum = Summed(combo);
     if (sum_out) *sum_out = sum;
     Eigen::Matrix<double, 12, 1> p;
     const double value = SmallestEigenvalue(sum, &p);
     const Eigen::Vector4d third_row = p.segment<4>(8);
     int positive = 0, negative = 0;
     for (size_t v = 0; v < combo.size(); ++v) {
-      for (const Eigen::Vector4d& X : world_normalised[v]) {
+      for (const Eigen::Vector4d& X : world_normalised_[v]) {
         (third_row.dot(X) > 0.0 ? positive : negative) += 1;
       }
     }
     return positive > 0 && negative > 0 ? std::numeric_limits<double>::infinity() : value;
-  };
-  // Seed: the first views, enough to span more than one plane (a single plane leaves the DLT
-  // degenerate for every labeling), at most 7 (4^7 = 16384 combinations), searched exhaustively.
-  size_t num_seed = std::min<size_t>(num_views, 2);
-  auto spans_volume = [&](size_t count) {
+  }
+
+  // Whether the first `count` views' points span a volume (not one plane).
+  bool SpansVolume(size_t count) const {
     std::vector<Eigen::Vector3d> points;
     for (size_t v = 0; v < count; ++v) {
-      points.insert(points.end(), points3D_per_view[v].begin(), points3D_per_view[v].end());
+      points.insert(points.end(), points3D_[v].begin(), points3D_[v].end());
     }
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (const auto& X : points) centroid += X / static_cast<double>(points.size());
@@ -315,105 +392,108 @@ GridRotationChoice ChooseGridRotations(
     const Eigen::Vector3d spread =
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues();
     return spread(0) > 1e-6 * spread(2);
-  };
-  while (num_seed < num_views && num_seed < 7 && !spans_volume(num_seed)) ++num_seed;
-  std::vector<std::vector<int>> seeds;
-  {
+  }
+
+  // Seed views: the first ones, enough to span more than one plane (a single plane leaves the
+  // DLT degenerate for every labeling), at most 7 (4^7 = 16384 combinations).
+  size_t SeedViewCount() const {
+    size_t num_seed = std::min<size_t>(num_views_, 2);
+    while (num_seed < num_views_ && num_seed < 7 && !SpansVolume(num_seed)) ++num_seed;
+    return num_seed;
+  }
+
+  // Every labeling of the seed views (the first view's rotation counting fastest).
+  std::vector<std::vector<int>> Seeds(size_t num_seed) const {
+    std::vector<std::vector<int>> seeds;
     std::vector<int> combo(num_seed, 0);
     while (true) {
       seeds.push_back(combo);
       size_t k = 0;
-      while (k < num_seed && ++combo[k] == static_cast<int>(num_rotations)) combo[k++] = 0;
+      while (k < num_seed && ++combo[k] == static_cast<int>(num_rotations_)) combo[k++] = 0;
       if (k == num_seed) break;
     }
+    return seeds;
   }
-  std::vector<double> seed_residuals(seeds.size());
-  double best_seed = std::numeric_limits<double>::infinity();
-  for (size_t c = 0; c < seeds.size(); ++c) {
-    Matrix12d sum;
-    seed_residuals[c] = residual_of(seeds[c], &sum);
-    best_seed = std::min(best_seed, seed_residuals[c]);
+
+  // Extends every cheiral seed (all of them when none is) view by view: the rotation that keeps
+  // the accumulated system most consistent (smallest eigenvalue) joins. The algebraic residual
+  // is not invariant under the exact relabelings of two planes, so only the geometric error of
+  // full labelings decides among them. Sorted, without duplicates.
+  std::vector<std::vector<int>> ExtendSeeds(const std::vector<std::vector<int>>& seeds,
+                                            size_t num_seed) const {
+    std::vector<double> seed_residuals(seeds.size());
+    double best_seed = std::numeric_limits<double>::infinity();
+    for (size_t c = 0; c < seeds.size(); ++c) {
+      Matrix12d sum;
+      seed_residuals[c] = ResidualOf(seeds[c], &sum);
+      best_seed = std::min(best_seed, seed_residuals[c]);
+    }
+    std::vector<std::vector<int>> combos;
+    for (size_t c = 0; c < seeds.size(); ++c) {
+      if (!std::isfinite(seed_residuals[c]) && std::isfinite(best_seed)) continue;
+      std::vector<int> combo = seeds[c];
+      Matrix12d sum = Summed(combo);
+      for (size_t v = num_seed; v < num_views_; ++v) {
+        double best = std::numeric_limits<double>::infinity();
+        int best_rotation = 0;
+        for (size_t r = 0; r < num_rotations_; ++r) {
+          const double value = SmallestEigenvalue(sum + normal_[v][r]);
+          if (value < best) {
+            best = value;
+            best_rotation = static_cast<int>(r);
+          }
+        }
+        combo.push_back(best_rotation);
+        sum += normal_[v][static_cast<size_t>(best_rotation)];
+      }
+      combos.push_back(combo);
+    }
+    std::sort(combos.begin(), combos.end());
+    combos.erase(std::unique(combos.begin(), combos.end()), combos.end());
+    return combos;
   }
-  // Extend each equally good seed view by view: the rotation that keeps the accumulated system
-  // most consistent (smallest eigenvalue) joins.
-  std::vector<std::vector<int>> combos;
-  for (size_t c = 0; c < seeds.size(); ++c) {
-    // Every cheiral seed is extended: the algebraic residual is not invariant under the exact
-    // relabelings of two planes, so only the geometric error of full labelings decides.
-    if (!std::isfinite(seed_residuals[c]) && std::isfinite(best_seed)) continue;
-    std::vector<int> combo = seeds[c];
-    Matrix12d sum = summed(combo);
-    for (size_t v = num_seed; v < num_views; ++v) {
-      double best = std::numeric_limits<double>::infinity();
-      int best_rotation = 0;
-      for (size_t r = 0; r < num_rotations; ++r) {
-        const double value = SmallestEigenvalue(sum + normal[v][r]);
-        if (value < best) {
-          best = value;
-          best_rotation = static_cast<int>(r);
+
+  Scores Score(const std::vector<std::vector<int>>& combos) const {
+    Scores scores;
+    scores.rms.resize(combos.size());
+    scores.cameras.resize(combos.size());
+    for (size_t c = 0; c < combos.size(); ++c) {
+      Matrix12d sum;
+      const double algebraic = ResidualOf(combos[c], &sum);
+      Eigen::Matrix<double, 12, 1> p;
+      SmallestEigenvalue(sum, &p);
+      ProjectionMatrix P_normalised;
+      for (int row = 0; row < 3; ++row) {
+        for (int col = 0; col < 4; ++col) P_normalised(row, col) = p(4 * row + col);
+      }
+      scores.cameras[c] = T_image_.inverse() * P_normalised * T_world_;
+      double sum_sq = 0.0;
+      size_t count = 0;
+      for (size_t v = 0; v < num_views_; ++v) {
+        const std::vector<int>& rotation = rotations_[static_cast<size_t>(combos[c][v])];
+        for (size_t i = 0; i < points3D_[v].size(); ++i) {
+          const Eigen::Vector2d& measured = centres_[v][static_cast<size_t>(rotation[i])];
+          sum_sq += (Project(scores.cameras[c], points3D_[v][i]) - measured).squaredNorm();
+          ++count;
         }
       }
-      combo.push_back(best_rotation);
-      sum += normal[v][static_cast<size_t>(best_rotation)];
-    }
-    combos.push_back(combo);
-  }
-  std::sort(combos.begin(), combos.end());
-  combos.erase(std::unique(combos.begin(), combos.end()), combos.end());
-  // Geometric reprojection RMS (px) of the linear DLT of each full labeling; +inf if not cheiral.
-  std::vector<double> rms(combos.size());
-  std::vector<ProjectionMatrix> cameras(combos.size());
-  double best_rms = std::numeric_limits<double>::infinity();
-  double best_algebraic = std::numeric_limits<double>::infinity();
-  for (size_t c = 0; c < combos.size(); ++c) {
-    Matrix12d sum;
-    const double algebraic = residual_of(combos[c], &sum);
-    Eigen::Matrix<double, 12, 1> p;
-    SmallestEigenvalue(sum, &p);
-    ProjectionMatrix P_normalised;
-    for (int row = 0; row < 3; ++row) {
-      for (int col = 0; col < 4; ++col) P_normalised(row, col) = p(4 * row + col);
-    }
-    cameras[c] = T_image.inverse() * P_normalised * T_world;
-    double sum_sq = 0.0;
-    size_t count = 0;
-    for (size_t v = 0; v < num_views; ++v) {
-      const std::vector<int>& rotation = rotations[static_cast<size_t>(combos[c][v])];
-      for (size_t i = 0; i < points3D_per_view[v].size(); ++i) {
-        const Eigen::Vector2d& measured =
-            canonical_centres_per_view[v][static_cast<size_t>(rotation[i])];
-        sum_sq += (Project(cameras[c], points3D_per_view[v][i]) - measured).squaredNorm();
-        ++count;
+      scores.rms[c] = std::isfinite(algebraic) ? std::sqrt(sum_sq / static_cast<double>(count))
+                                               : std::numeric_limits<double>::infinity();
+      if (scores.rms[c] < scores.best_rms) {
+        scores.best_rms = scores.rms[c];
+        scores.best_algebraic = algebraic;
       }
     }
-    rms[c] = std::isfinite(algebraic) ? std::sqrt(sum_sq / static_cast<double>(count))
-                                      : std::numeric_limits<double>::infinity();
-    if (rms[c] < best_rms) {
-      best_rms = rms[c];
-      best_algebraic = algebraic;
-    }
+    return scores;
   }
-  std::vector<size_t> equivalent;
-  for (size_t c = 0; c < combos.size(); ++c) {
-    if (rms[c] <= 1.25 * best_rms + 0.02) equivalent.push_back(c);
-  }
-  if (equivalent.empty()) {  // nothing cheiral: fall back to all labelings
-    for (size_t c = 0; c < combos.size(); ++c) equivalent.push_back(c);
-  }
-  GridRotationChoice choice;
-  choice.algebraic_residual = best_algebraic;
-  choice.reprojection_rms_px = best_rms;
-  choice.num_equivalent = static_cast<int>(equivalent.size());
-  size_t chosen = equivalent.front();
-  for (size_t c : equivalent) {
-    if (rms[c] < rms[chosen]) chosen = c;
-  }
-  if (equivalent.size() > 1) {
-    // Orientation rule: world +X appears closest to image +u (rightward).
-    choice.decided_by_image_rule = true;
+
+  // Orientation rule among equally good labelings: world +X appears closest to image +u
+  // (`chosen` when no alignment is a number).
+  size_t ChooseByImageRule(const std::vector<size_t>& equivalent,
+                           const std::vector<ProjectionMatrix>& cameras, size_t chosen) const {
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (const auto& X : all_world) centroid += X;
-    centroid /= static_cast<double>(all_world.size());
+    for (const auto& X : all_world_) centroid += X;
+    centroid /= static_cast<double>(all_world_.size());
     double best_alignment = -std::numeric_limits<double>::infinity();
     for (size_t c : equivalent) {
       const Eigen::Vector2d direction =
@@ -424,9 +504,32 @@ GridRotationChoice ChooseGridRotations(
         chosen = c;
       }
     }
+    return chosen;
   }
-  choice.rotation_per_view = combos[chosen];
-  return choice;
+
+  const std::vector<std::vector<Eigen::Vector3d>>& points3D_;
+  const std::vector<std::vector<Eigen::Vector2d>>& centres_;
+  const std::vector<std::vector<int>>& rotations_;
+  const size_t num_views_, num_rotations_;
+  std::vector<Eigen::Vector3d> all_world_;
+  std::vector<Eigen::Vector2d> all_image_;
+  Eigen::Matrix4d T_world_;
+  Eigen::Matrix3d T_image_;
+  std::vector<std::vector<Eigen::Vector4d>> world_normalised_;  // T_world X, per view
+  std::vector<std::vector<Matrix12d>> normal_;
+};
+
+}  // namespace
+
+GridRotationChoice ChooseGridRotations(
+    const std::vector<std::vector<Eigen::Vector3d>>& points3D_per_view,
+    const std::vector<std::vector<Eigen::Vector2d>>& canonical_centres_per_view,
+    const std::vector<std::vector<int>>& rotations) {
+  const size_t num_views = points3D_per_view.size();
+  if (num_views == 0 || canonical_centres_per_view.size() != num_views || rotations.empty()) {
+    throw std::invalid_argument("ChooseGridRotations: inconsistent input sizes");
+  }
+  return RotationSearch(points3D_per_view, canonical_centres_per_view, rotations).Run();
 }
 
 CalibrationResult CalibrateFromCorrespondences(

@@ -293,6 +293,231 @@ std::vector<std::vector<int>> GridRotations(int rows, int cols) {
   return rotations;
 }
 
+namespace {
+
+// Blob indices, the most circular first, at most max_candidates of them.
+std::vector<int> RankCandidates(const std::vector<CircleBlob>& blobs, int max_candidates) {
+  std::vector<int> candidates(blobs.size());
+  std::iota(candidates.begin(), candidates.end(), 0);
+  std::stable_sort(candidates.begin(), candidates.end(), [&](int a, int b) {
+    return blobs[a].radial_deviation < blobs[b].radial_deviation;
+  });
+  if (static_cast<int>(candidates.size()) > max_candidates) candidates.resize(max_candidates);
+  return candidates;
+}
+
+// The best grid found so far: its fit residual (RMS over the mean blob spacing), blob per grid
+// point (row-major) and least-squares homography from (col, row) to the image.
+struct GridFit {
+  double residual = std::numeric_limits<double>::infinity();
+  std::vector<int> assignment;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();
+};
+
+// The search for a rows x cols grid among the candidate blobs: every convex quad of candidates
+// as the grid's corners, the rest predicted by the corner homography (thesis 3.2.4).
+class GridSearch {
+ public:
+  GridSearch(const std::vector<CircleBlob>& blobs, std::vector<int> candidates, int rows,
+             int cols, const CircleGridOptions& options)
+      : blobs_(blobs), candidates_(std::move(candidates)), rows_(rows), cols_(cols),
+        n_grid_(rows * cols), options_(options), assignment_(static_cast<size_t>(n_grid_)) {
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c) grid_points_.emplace_back(c, r);
+    }
+  }
+
+  GridFit Run() {
+    const int m = static_cast<int>(candidates_.size());
+    for (int a = 0; a < m; ++a) {
+      for (int b = a + 1; b < m; ++b) {
+        for (int c = b + 1; c < m; ++c) {
+          for (int d = c + 1; d < m; ++d) {
+            TryQuad(candidates_[a], candidates_[b], candidates_[c], candidates_[d]);
+          }
+        }
+      }
+    }
+    return best_;
+  }
+
+ private:
+  // The quad's blobs in cyclic order by angle about their centroid, when their areas agree
+  // within max_area_ratio and they form a strictly convex quad; their area range in *min_area,
+  // *max_area.
+  bool OrderConvexQuad(int (&quad)[4], double* min_area, double* max_area) const {
+    *min_area = std::numeric_limits<double>::infinity();
+    *max_area = 0.0;
+    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+    for (int q : quad) {
+      *min_area = std::min(*min_area, blobs_[q].area_px);
+      *max_area = std::max(*max_area, blobs_[q].area_px);
+      centroid += 0.25 * blobs_[q].centre_px;
+    }
+    if (*max_area > options_.max_area_ratio * *min_area) return false;
+    std::sort(quad, quad + 4, [&](int p, int q) {
+      const Eigen::Vector2d dp = blobs_[p].centre_px - centroid;
+      const Eigen::Vector2d dq = blobs_[q].centre_px - centroid;
+      return std::atan2(dp.y(), dp.x()) < std::atan2(dq.y(), dq.x());
+    });
+    bool convex = true;
+    for (int k = 0; k < 4 && convex; ++k) {
+      const Eigen::Vector2d e1 = blobs_[quad[(k + 1) % 4]].centre_px - blobs_[quad[k]].centre_px;
+      const Eigen::Vector2d e2 =
+          blobs_[quad[(k + 2) % 4]].centre_px - blobs_[quad[(k + 1) % 4]].centre_px;
+      convex = Cross(e1, e2) > 0.0;
+    }
+    return convex;
+  }
+
+  // Blobs a, b, c, d as the grid's corners (each of a rectangular grid's two orientations).
+  void TryQuad(int a, int b, int c, int d) {
+    int quad[4] = {a, b, c, d};
+    double min_area = 0.0, max_area = 0.0;
+    if (!OrderConvexQuad(quad, &min_area, &max_area)) return;
+    const int starts = rows_ == cols_ ? 1 : 2;  // a square grid's corners are interchangeable
+    for (int start = 0; start < starts; ++start) {
+      if (!AssignGrid(quad, start, min_area, max_area)) continue;
+      ScoreAssignment();
+    }
+  }
+
+  // assignment_: quad[(start + k) % 4] at grid corner k, every other grid point the nearest
+  // candidate to its prediction by the corner homography (within max_prediction_error of the
+  // local spacing, unused, of an agreeing area). False when a point finds none.
+  bool AssignGrid(const int (&quad)[4], int start, double min_area, double max_area) {
+    const Eigen::Vector2d grid_corners[4] = {
+        {0, 0}, {cols_ - 1.0, 0}, {cols_ - 1.0, rows_ - 1.0}, {0, rows_ - 1.0}};
+    Eigen::Vector2d image_corners[4];
+    for (int k = 0; k < 4; ++k) image_corners[k] = blobs_[quad[(start + k) % 4]].centre_px;
+    Eigen::Matrix3d H;
+    if (!HomographyFromFour(grid_corners, image_corners, &H)) return false;
+    std::fill(assignment_.begin(), assignment_.end(), -1);
+    for (int k = 0; k < 4; ++k) {
+      const int index = static_cast<int>(grid_corners[k].y()) * cols_ +
+                        static_cast<int>(grid_corners[k].x());
+      assignment_[index] = quad[(start + k) % 4];
+    }
+    for (int i = 0; i < n_grid_; ++i) {
+      if (assignment_[i] >= 0) continue;
+      const int nearest = NearestToPrediction(H, grid_points_[i].x(), grid_points_[i].y());
+      if (nearest < 0 ||
+          std::find(assignment_.begin(), assignment_.end(), nearest) != assignment_.end()) {
+        return false;
+      }
+      if (blobs_[nearest].area_px > options_.max_area_ratio * min_area ||
+          max_area > options_.max_area_ratio * blobs_[nearest].area_px) {
+        return false;
+      }
+      assignment_[i] = nearest;
+    }
+    return true;
+  }
+
+  // The candidate nearest to H's image of grid point (gx, gy), within max_prediction_error of
+  // the predicted spacing there (the last of equally near ones); -1 when none is.
+  int NearestToPrediction(const Eigen::Matrix3d& H, double gx, double gy) const {
+    const Eigen::Vector2d predicted = Apply(H, gx, gy);
+    const double spacing = std::min((Apply(H, gx + 1, gy) - predicted).norm(),
+                                    (Apply(H, gx, gy + 1) - predicted).norm());
+    const double tolerance = options_.max_prediction_error * spacing;
+    int nearest = -1;
+    double nearest_distance = tolerance;
+    for (const int candidate : candidates_) {
+      const double distance = (blobs_[candidate].centre_px - predicted).norm();
+      if (distance <= nearest_distance) {
+        nearest_distance = distance;
+        nearest = candidate;
+      }
+    }
+    return nearest;
+  }
+
+  // The mean distance between grid-neighbouring blobs: the residual's unit (not the fitted
+  // homography's spacing, which a near-degenerate H makes huge, hiding its residual).
+  double MeanBlobSpacing(const std::vector<Eigen::Vector2d>& image_points) const {
+    double sum_spacing = 0.0;
+    int num_spacings = 0;
+    for (int r = 0; r < rows_; ++r) {
+      for (int col = 0; col < cols_; ++col) {
+        const Eigen::Vector2d& p = image_points[r * cols_ + col];
+        if (col + 1 < cols_) sum_spacing += (image_points[r * cols_ + col + 1] - p).norm();
+        if (r + 1 < rows_) sum_spacing += (image_points[(r + 1) * cols_ + col] - p).norm();
+        num_spacings += (col + 1 < cols_) + (r + 1 < rows_);
+      }
+    }
+    return sum_spacing / num_spacings;
+  }
+
+  // Fits a homography to assignment_ and keeps it when no point is off by more than
+  // max_prediction_error spacings and its residual beats the best so far.
+  void ScoreAssignment() {
+    std::vector<Eigen::Vector2d> image_points(n_grid_);
+    for (int i = 0; i < n_grid_; ++i) image_points[i] = blobs_[assignment_[i]].centre_px;
+    const Eigen::Matrix3d H_fit = HomographyLeastSquares(grid_points_, image_points);
+    const double mean_spacing = MeanBlobSpacing(image_points);
+    double sum_sq = 0.0, worst = 0.0;
+    for (int i = 0; i < n_grid_; ++i) {
+      const double error =
+          (Apply(H_fit, grid_points_[i].x(), grid_points_[i].y()) - image_points[i]).norm();
+      sum_sq += error * error;
+      worst = std::max(worst, error);
+    }
+    if (!H_fit.allFinite() || worst > options_.max_prediction_error * mean_spacing) return;
+    const double residual = std::sqrt(sum_sq / n_grid_) / mean_spacing;
+    if (residual < best_.residual) {
+      best_.residual = residual;
+      best_.assignment = assignment_;
+      best_.H = H_fit;
+    }
+  }
+
+  const std::vector<CircleBlob>& blobs_;
+  const std::vector<int> candidates_;
+  const int rows_, cols_, n_grid_;
+  const CircleGridOptions& options_;
+  std::vector<Eigen::Vector2d> grid_points_;  // (col, row) of every grid point, row-major
+  std::vector<int> assignment_;               // the quad being tried
+  GridFit best_;
+};
+
+// The canonical labeling of a found grid. Rule 1: handedness (target +z faces the camera,
+// v points down); rule 2: the rotation whose +col direction is closest to image +u.
+std::vector<int> CanonicalLabeling(const GridFit& fit, const std::vector<CircleBlob>& blobs,
+                                   int rows, int cols) {
+  const int n_grid = rows * cols;
+  const double centre_col = 0.5 * (cols - 1), centre_row = 0.5 * (rows - 1);
+  const Eigen::Vector2d origin = Apply(fit.H, centre_col, centre_row);
+  const Eigen::Vector2d d_col = Apply(fit.H, centre_col + 1, centre_row) - origin;
+  const Eigen::Vector2d d_row = Apply(fit.H, centre_col, centre_row + 1) - origin;
+  std::vector<int> labeling = fit.assignment;
+  if (Cross(d_col, d_row) > 0.0) {
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < cols; ++c)
+        labeling[r * cols + c] = fit.assignment[r * cols + (cols - 1 - c)];
+    }
+  }
+  double best_alignment = -std::numeric_limits<double>::infinity();
+  std::vector<int> canonical;
+  for (const std::vector<int>& rotation : GridRotations(rows, cols)) {
+    std::vector<int> rotated(n_grid);
+    for (int i = 0; i < n_grid; ++i) rotated[i] = labeling[rotation[i]];
+    Eigen::Vector2d col_direction = Eigen::Vector2d::Zero();
+    for (int r = 0; r < rows; ++r) {
+      col_direction +=
+          blobs[rotated[r * cols + cols - 1]].centre_px - blobs[rotated[r * cols]].centre_px;
+    }
+    const double alignment = col_direction.x() / std::max(col_direction.norm(), 1e-12);
+    if (alignment > best_alignment + 1e-9) {
+      best_alignment = alignment;
+      canonical = rotated;
+    }
+  }
+  return canonical;
+}
+
+}  // namespace
+
 CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
                                    const CircleGridGeometry& grid,
                                    const CircleGridOptions& options) {
@@ -311,173 +536,18 @@ CircleGridDetection FindCircleGrid(const std::vector<CircleBlob>& blobs,
                         std::to_string(cols) + " grid";
     return detection;
   }
-  // The most circular blobs first.
-  std::vector<int> candidates(blobs.size());
-  std::iota(candidates.begin(), candidates.end(), 0);
-  std::stable_sort(candidates.begin(), candidates.end(), [&](int a, int b) {
-    return blobs[a].radial_deviation < blobs[b].radial_deviation;
-  });
-  if (static_cast<int>(candidates.size()) > options.max_candidates) {
-    candidates.resize(options.max_candidates);
-  }
-  const int m = static_cast<int>(candidates.size());
-
-  // Grid corners in (col, row) coordinates, in cyclic order.
-  const Eigen::Vector2d grid_corners[4] = {
-      {0, 0}, {cols - 1.0, 0}, {cols - 1.0, rows - 1.0}, {0, rows - 1.0}};
-  std::vector<Eigen::Vector2d> grid_points;
-  for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < cols; ++c) grid_points.emplace_back(c, r);
-  }
-
-  double best_residual = std::numeric_limits<double>::infinity();
-  std::vector<int> best_assignment;
-  Eigen::Matrix3d best_H = Eigen::Matrix3d::Identity();
-  std::vector<int> assignment(n_grid);
-  for (int a = 0; a < m; ++a) {
-    for (int b = a + 1; b < m; ++b) {
-      for (int c = b + 1; c < m; ++c) {
-        for (int d = c + 1; d < m; ++d) {
-          int quad[4] = {candidates[a], candidates[b], candidates[c], candidates[d]};
-          double min_area = std::numeric_limits<double>::infinity(), max_area = 0.0;
-          Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
-          for (int q : quad) {
-            min_area = std::min(min_area, blobs[q].area_px);
-            max_area = std::max(max_area, blobs[q].area_px);
-            centroid += 0.25 * blobs[q].centre_px;
-          }
-          if (max_area > options.max_area_ratio * min_area) continue;
-          // Cyclic order by angle about the centroid, then require a strictly convex quad.
-          std::sort(quad, quad + 4, [&](int p, int q) {
-            const Eigen::Vector2d dp = blobs[p].centre_px - centroid;
-            const Eigen::Vector2d dq = blobs[q].centre_px - centroid;
-            return std::atan2(dp.y(), dp.x()) < std::atan2(dq.y(), dq.x());
-          });
-          bool convex = true;
-          for (int k = 0; k < 4 && convex; ++k) {
-            const Eigen::Vector2d e1 =
-                blobs[quad[(k + 1) % 4]].centre_px - blobs[quad[k]].centre_px;
-            const Eigen::Vector2d e2 =
-                blobs[quad[(k + 2) % 4]].centre_px - blobs[quad[(k + 1) % 4]].centre_px;
-            convex = Cross(e1, e2) > 0.0;
-          }
-          if (!convex) continue;
-          const int starts = rows == cols ? 1 : 2;  // a square grid's corners are interchangeable
-          for (int start = 0; start < starts; ++start) {
-            Eigen::Vector2d image_corners[4];
-            for (int k = 0; k < 4; ++k) image_corners[k] = blobs[quad[(start + k) % 4]].centre_px;
-            Eigen::Matrix3d H;
-            if (!HomographyFromFour(grid_corners, image_corners, &H)) continue;
-            bool complete = true;
-            std::fill(assignment.begin(), assignment.end(), -1);
-            for (int k = 0; k < 4; ++k) {
-              const int index = static_cast<int>(grid_corners[k].y()) * cols +
-                                static_cast<int>(grid_corners[k].x());
-              assignment[index] = quad[(start + k) % 4];
-            }
-            for (int i = 0; i < n_grid && complete; ++i) {
-              if (assignment[i] >= 0) continue;
-              const double gx = grid_points[i].x(), gy = grid_points[i].y();
-              const Eigen::Vector2d predicted = Apply(H, gx, gy);
-              const double spacing = std::min((Apply(H, gx + 1, gy) - predicted).norm(),
-                                              (Apply(H, gx, gy + 1) - predicted).norm());
-              const double tolerance = options.max_prediction_error * spacing;
-              int nearest = -1;
-              double nearest_distance = tolerance;
-              for (int k = 0; k < m; ++k) {
-                const double distance = (blobs[candidates[k]].centre_px - predicted).norm();
-                if (distance <= nearest_distance) {
-                  nearest_distance = distance;
-                  nearest = candidates[k];
-                }
-              }
-              if (nearest < 0 ||
-                  std::find(assignment.begin(), assignment.end(), nearest) != assignment.end()) {
-                complete = false;
-                break;
-              }
-              if (blobs[nearest].area_px > options.max_area_ratio * min_area ||
-                  max_area > options.max_area_ratio * blobs[nearest].area_px) {
-                complete = false;
-                break;
-              }
-              assignment[i] = nearest;
-            }
-            if (!complete) continue;
-            std::vector<Eigen::Vector2d> image_points(n_grid);
-            for (int i = 0; i < n_grid; ++i) image_points[i] = blobs[assignment[i]].centre_px;
-            const Eigen::Matrix3d H_fit = HomographyLeastSquares(grid_points, image_points);
-            // Normalise by the spacing measured between neighbouring blobs, not by the fitted
-            // homography (a near-degenerate H has huge spacings and would hide its residual).
-            double sum_spacing = 0.0;
-            int num_spacings = 0;
-            for (int r = 0; r < rows; ++r) {
-              for (int col = 0; col < cols; ++col) {
-                const Eigen::Vector2d& p = image_points[r * cols + col];
-                if (col + 1 < cols) sum_spacing += (image_points[r * cols + col + 1] - p).norm();
-                if (r + 1 < rows) sum_spacing += (image_points[(r + 1) * cols + col] - p).norm();
-                num_spacings += (col + 1 < cols) + (r + 1 < rows);
-              }
-            }
-            const double mean_spacing = sum_spacing / num_spacings;
-            double sum_sq = 0.0, worst = 0.0;
-            for (int i = 0; i < n_grid; ++i) {
-              const double error =
-                  (Apply(H_fit, grid_points[i].x(), grid_points[i].y()) - image_points[i]).norm();
-              sum_sq += error * error;
-              worst = std::max(worst, error);
-            }
-            if (!H_fit.allFinite() || worst > options.max_prediction_error * mean_spacing) continue;
-            const double residual = std::sqrt(sum_sq / n_grid) / mean_spacing;
-            if (residual < best_residual) {
-              best_residual = residual;
-              best_assignment = assignment;
-              best_H = H_fit;
-            }
-          }
-        }
-      }
-    }
-  }
-  if (best_assignment.empty()) {
+  const GridFit best =
+      GridSearch(blobs, RankCandidates(blobs, options.max_candidates), rows, cols, options).Run();
+  if (best.assignment.empty()) {
     detection.message = "no " + std::to_string(rows) + " x " + std::to_string(cols) +
                         " grid among " + std::to_string(blobs.size()) + " circular blobs";
     return detection;
   }
-
-  // Canonical labeling, rule 1: handedness (target +z faces the camera, v points down).
-  const double centre_col = 0.5 * (cols - 1), centre_row = 0.5 * (rows - 1);
-  const Eigen::Vector2d origin = Apply(best_H, centre_col, centre_row);
-  const Eigen::Vector2d d_col = Apply(best_H, centre_col + 1, centre_row) - origin;
-  const Eigen::Vector2d d_row = Apply(best_H, centre_col, centre_row + 1) - origin;
-  std::vector<int> labeling = best_assignment;
-  if (Cross(d_col, d_row) > 0.0) {
-    for (int r = 0; r < rows; ++r) {
-      for (int c = 0; c < cols; ++c)
-        labeling[r * cols + c] = best_assignment[r * cols + (cols - 1 - c)];
-    }
-  }
-  // Rule 2: the rotation whose +col direction is closest to image +u.
-  double best_alignment = -std::numeric_limits<double>::infinity();
-  std::vector<int> canonical;
-  for (const std::vector<int>& rotation : GridRotations(rows, cols)) {
-    std::vector<int> rotated(n_grid);
-    for (int i = 0; i < n_grid; ++i) rotated[i] = labeling[rotation[i]];
-    Eigen::Vector2d col_direction = Eigen::Vector2d::Zero();
-    for (int r = 0; r < rows; ++r) {
-      col_direction +=
-          blobs[rotated[r * cols + cols - 1]].centre_px - blobs[rotated[r * cols]].centre_px;
-    }
-    const double alignment = col_direction.x() / std::max(col_direction.norm(), 1e-12);
-    if (alignment > best_alignment + 1e-9) {
-      best_alignment = alignment;
-      canonical = rotated;
-    }
-  }
+  const std::vector<int> canonical = CanonicalLabeling(best, blobs, rows, cols);
   detection.found = true;
   detection.grid_blob_index = canonical;
   for (int index : canonical) detection.centres_px.push_back(blobs[index].centre_px);
-  detection.grid_fit_residual = best_residual;
+  detection.grid_fit_residual = best.residual;
   return detection;
 }
 

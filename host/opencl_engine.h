@@ -49,9 +49,9 @@ struct OpenClEngineOptions {
   /// Row-blocked kernels: rows per work-item (0 = automatic: 1 on a GPU, about n_rows / 256 on
   /// a CPU device, where PoCL runs one work-item per work-group with explicit vector loads).
   int rows_per_item = 0;
-  /// Row blocks: how the weight blocks are built. kAuto: one work-item per weight on a GPU
-  /// (build_weight_blocks_flat), one per row on a CPU device (vectorised for the default
-  /// objective); kPerWeight forces the GPU's kernel anywhere (so a CPU test covers it).
+  /// Row blocks: how the weight blocks are built. kAuto: a work-item per row for the default
+  /// objective on a CPU device (build_weight_blocks_vec4), else a work-item per weight
+  /// (build_weight_blocks_flat); kPerWeight forces the latter anywhere (a CPU test covers it).
   enum class BlockBuild { kAuto, kPerRow, kPerWeight };
   BlockBuild block_build = BlockBuild::kAuto;
   /// Row blocks: how the fused step is spread. kAuto: one work-group of kStepGroup work-items

@@ -163,8 +163,7 @@ __kernel void line_sums(const int n_rows, const int n_columns,
 // and r = x - n ln 2 (ln 2 in two parts), e^r by Cephes' expf polynomial (S. L. Moshier, Cephes
 // Math Library: relative error about 1e-7 on |r| <= ln 2 / 2). x is clamped to [-87, 87], where
 // 2^n stays a normal float (e^x is then 1.6e-38 or 6.1e37). The same bits in every vector width
-// and as a scalar, which PoCL's exp is not (its scalar and float4 exp differ in the last bit for
-// 0.6 % of 4 M arguments here).
+// and as a scalar, which PoCL's exp is not (its scalar and vector exp differ in the last bit).
 #define DEFINE_EXP_LANES(T, IT)                                                      \
   T exp_lanes_##T(const T x) {                                                     \
     const T y = clamp(x, -87.0f, 87.0f);                                           \
@@ -184,9 +183,8 @@ DEFINE_EXP_LANES(float16, int16)
 
 // The continuous activation V = (1 + tanh(u / alpha)) / 2 (the thesis's), computed as the same
 // function's other form, the logistic 1 / (1 + e^(-2u / alpha)), with exp_lanes: the same bits
-// whether a row is finished alone (float4), in fours (float16) or as a wider row (float8). In
-// place of PoCL's tanh: 5 % fewer instructions in Teddy's 1,000-feature solve (callgrind,
-// docs/engine.md). V below 2^-25 is 0, as (1 + tanh) / 2 rounds it in float (tanh(x) is -1 for
+// whether a row is finished alone (float4), in fours (float16) or as a wider row (float8), in
+// fewer instructions than PoCL's tanh. V below 2^-25 is 0, as (1 + tanh) / 2 rounds it in float (tanh(x) is -1 for
 // x < -9.01): a neuron that far OFF stays exactly 0, which the on-the-fly step skips.
 #define DEFINE_ACTIVATION(T)                                        \
   T activation_##T(const T u, const float alpha) {                  \
@@ -287,7 +285,7 @@ __kernel void segment_sum(__global const int* segment_offsets,
 }
 
 // ---------------------------------------------------------------------------------------------
-// Row-blocked engine (host/opencl_blocked.cc): the same network and the same Euler steps, laid
+// Row-blocked engine (host/device_network_blocks.cc): the same network and the same Euler steps, laid
 // out for streaming. Every row (left feature) is padded to ROW_PAD neuron slots (slot i*ROW_PAD
 // + k; padded slots hold V = 0 and are never written), and the weights between row i and its
 // neighbour row j are one dense ROW_PAD x ROW_PAD block, stored contiguously in the order of
@@ -335,47 +333,6 @@ float slot_weight(const int i, const int k, const int j, const int q,
   return w;
 }
 
-// Weight blocks, one work-item per row: block t of row i (t in its neighbour range) holds
-// W[(i,k),(j,q)] at t * BLOCK_SIZE + q * ROW_PAD + k (column q of the block contiguous, so the
-// step adds column q times V[j,q] with vector FMAs); padded slots get 0. Measured faster than
-// one work-item per weight (build_weight_blocks_flat, kept for a GPU): the per-weight index
-// arithmetic and lookups cost more than the loop, as neither is vectorised by PoCL here.
-__kernel void build_weight_blocks(const int n_rows,
-                                  __global const int* row_count,
-                                  __global const int* feature_neighbour_offsets,
-                                  __global const int* feature_neighbours,
-                                  __global const float2* slot_right,
-                                  __global const float* slot_correlation,
-                                  __global const float2* feature_point,
-                                  const EnergyParams p,
-#if WEIGHTS == 1
-                                  __global half* blocks
-#else
-                                  __global float* blocks
-#endif
-                                  ) {
-  const int i = get_global_id(0);
-  if (i >= n_rows) return;
-  const int ni = row_count[i];
-  for (int t = feature_neighbour_offsets[i]; t < feature_neighbour_offsets[i + 1]; ++t) {
-    const int j = feature_neighbours[t];
-    const int nj = row_count[j];
-    for (int k = 0; k < ROW_PAD; ++k) {
-      for (int q = 0; q < BLOCK_COLS; ++q) {
-        const float w = (k < ni && q < nj)
-                            ? slot_weight(i, k, j, q, slot_right, slot_correlation, feature_point, p)
-                            : 0.0f;
-        const size_t at = ((size_t)t * BLOCK_COLS + q) * ROW_PAD + k;
-#if WEIGHTS == 1
-        vstore_half(w, at, blocks);
-#else
-        blocks[at] = w;
-#endif
-      }
-    }
-  }
-}
-
 // Column sums over padded slots (feature-vs-feature networks only): one work-item per column.
 // Column k's sum of V over its slots (column_sums_blocked, solve_blocked_resident).
 float column_sum(const int k, __global const int* column_offsets,
@@ -416,9 +373,9 @@ int16 live_slots_of_rows4(__global const int* row_count, const int i) {
 // and the step of u and V into the other state buffer.
 #if ROW_PAD == 4 && !DISCRETE
 // 4-slot rows (hnn-default's top-4 network): the four slots as one float4, so that the activation
-// - the costliest part of a step on a CPU device once the blocks sit in cache (perf: the scalar
-// tanh was most of the step on sparse-2000) - is one vector call. Padded slots (k >= ni) are masked
-// to 0 and never written; the sums run in the scalar loop's order.
+// - the costliest part of a step on a CPU device once the blocks sit in cache - is one vector
+// call. Padded slots (k >= ni) are masked to 0 and never written; the sums run in the scalar
+// loop's order.
 void finish_row(FINISH_ROW_PARAMS) {
   const int base = i * 4;
   const int4 live = (int4)(0, 1, 2, 3) < (int4)(ni);
@@ -451,10 +408,9 @@ void finish_row(FINISH_ROW_PARAMS) {
 }
 
 // Rows i .. i + 3 finished together: the float4 finish_row's arithmetic lane by lane on one
-// float16, so that the activation is one 16-wide call instead of four 4-wide ones. On a CPU
-// device it is a chain of dependent vector operations, and that chain, not the blocks,
-// was most of a step once the blocks sit in cache (perf of the 2,000-feature network: 3x the
-// time of the block loop). Padded slots keep their values (V 0), as finish_row leaves them.
+// float16, so that the activation is one 16-wide call instead of four 4-wide ones (on a CPU
+// device the finish is a chain of dependent vector operations, longer than the block loop once
+// the blocks sit in cache). Padded slots keep their values (V 0), as finish_row leaves them.
 __attribute__((always_inline)) void finish_rows4(const int i, const float16 acc,
                                                 __global const int* row_count,
                   __global const float* slot_bias, __global const int* slot_column,
@@ -491,8 +447,8 @@ __attribute__((always_inline)) void finish_rows4(const int i, const float16 acc,
 #elif !DISCRETE
 // Wider rows (8, 12, ... slots: the pick cell's feature network) in chunks of FINISH_W slots
 // (8 where the row pad allows, else 4), each as one vector: one vector activation per chunk
-// instead of a scalar one per slot (perf of a pick network, 8-slot rows: the scalar finish was
-// half of the step). The energy terms are added in slot order, as the scalar loop adds them.
+// instead of a scalar one per slot. The energy terms are added in slot order, as the scalar loop
+// adds them.
 #if ROW_PAD % 8 == 0
 #define FINISH_W 8
 #define activationW activation_float8
@@ -604,7 +560,7 @@ void finish_row(FINISH_ROW_PARAMS) {
       __global const int* network_of_row, __global const int* active, const float dt,         \
       const float inv_tau, const float alpha
 // `check` != 0: the step also makes the kDecisions check at u_in (decide_row below) into
-// `decisions` and `changes`, which row_decisions made in a launch of its own before.
+// `decisions` and `changes`.
 #define STEP_BLOCKED_PARAMS                                                            \
   STEP_NETWORK_PARAMS, __global const float* V_in, __global const float* u_in,         \
       __global float* V_out, __global float* u_out, __global float* row_energy,        \
@@ -621,8 +577,7 @@ void finish_row(FINISH_ROW_PARAMS) {
 // the row blocks' fused steps: the row's decision - the index of its neuron with the largest u
 // when that u > 0, else -1 - against the previous check's, a changed row counted in
 // changes[network]. The fused steps call it for every row they update at a check step, on the
-// u they have just read: no launch of its own (row_decisions over the 5,000-feature network's
-// blocks took 52 us a check, a third of a step: bench --profile).
+// u they have just read, which saves the row blocks a launch of row_decisions a check.
 void decide_row(const int i, const int ni, __global const float* u, const int first,
                 __global int* decisions, __global int* changes, const int network) {
   int best = -1;
@@ -643,8 +598,7 @@ void decide_row(const int i, const int ni, __global const float* u, const int fi
 // decide_row for the four 4-slot rows i .. i + 3 at once, on one float16 of their u: a
 // tournament of pairs then halves, where a strict > keeps the lower slot on a tie, gives each
 // row's first slot of largest u, as decide_row's scan does (padded slots are -inf: never
-// chosen). callgrind of the 1,000-feature step: decide_row's scalar scans were 18 % of the rows'
-// instructions at a check step.
+// chosen), without decide_row's scalar scans.
 void decide_rows4(const int i, __global const int* row_count, __global const float* u,
                   __global int* decisions, __global int* changes,
                   __global const int* network_of_row) {
@@ -674,11 +628,8 @@ void decide_rows4(const int i, __global const int* row_count, __global const flo
 //
 // The stored blocks are added into two independent accumulator chains (even and odd blocks of
 // the range, or the halves of an 8-slot block), summed once after the loop: one chain makes
-// every block wait for the previous block's FMA (4 cycles on the 2-core VM's cores, about the
-// time of the block's loads), two let consecutive blocks overlap. hnnstereo_replay of Teddy's
-// networks, four rounds alternated between builds, median ms a step: 5,000 features 0.133 ->
-// 0.111, all 2.72 -> 2.44, the 8-slot feature network of 5,000 0.285 -> 0.271; 1,000 and 2,000
-// within the noise. The sums change order; Teddy's MATCHES.csv and EVAL.json stay the same.
+// every block wait for the previous block's FMA (about the time of the block's loads), two let
+// consecutive blocks overlap.
 void row_input(const int i, const int ni, const int first, const int end, const int stride,
                __global const int* row_count, __global const int* feature_neighbours,
                __global const BLOCK_TYPE* blocks, __global const float2* slot_right,
@@ -699,7 +650,7 @@ void row_input(const int i, const int ni, const int first, const int end, const 
   }
 #elif ROW_PAD == 4 && BLOCK_COLS == 3
   // A 3 x 4 block: columns q = 0, 1 as one 8-wide vector, column 2 as a 4-wide one. (The
-  // chains are named variables: as private arrays PoCL kept them in memory, 40 % slower.)
+  // chains are named variables: PoCL keeps private arrays in memory.)
   float8 acc8_0 = (float8)(0.0f), acc8_1 = (float8)(0.0f);
   float4 acc_q2_0 = (float4)(0.0f), acc_q2_1 = (float4)(0.0f);
   int t = first;
@@ -839,12 +790,12 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 }
 
 // The whole blocked solve in one launch (OpenClEngineOptions::SolveLoop::kDevice: networks on a
-// CPU device). It runs SolveBlocked's host loop itself - the fused step of every row as
+// CPU device). It runs BlockedNetwork::SolveOnHost itself - the fused step of every row as
 // neuron_step_blocked does it, and at every `interval`-th step (and at max_steps) the energy and
-// the stop rule (host/opencl_engine.cc, CheckConvergence; kDecisions counted by the step's
+// the stop rule (host/device_network.cc, CheckConvergence; kDecisions counted by the step's
 // decide_row) - so the solve costs one launch and one read instead of a launch per step and a
-// host round trip per check. On the 2-core CPU device those cost about as much as the step
-// itself on a 2,000-feature network, whose blocks sit in the cores' caches (docs/engine.md).
+// host round trip per check, which on a CPU device cost about as much as a step whose blocks
+// sit in the cores' caches.
 // One network (no batch). State buffers 0 and 1 as the host loop's parities; `decisions` starts
 // at -2. With column uniqueness (n_column_ranges > 0) every step first sums the columns of V_in
 // (column_sums_blocked's sums, in ranges of columns claimed as the rows' are), then steps the
@@ -861,8 +812,8 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // is one Jacobi step of the whole network, whoever computes a range computes it the same way,
 // and the result is bit for bit that of one group. No group waits for another to arrive: a
 // group whose thread is taken off its core holds up a step only while it holds a range, and the
-// others take its ranges meanwhile (with a barrier instead, one core kept busy by another
-// process made a 2 ms solve take 90-200 ms). Groups that never run at once (PoCL with one
+// others take its ranges meanwhile (a barrier would stall every group behind a descheduled
+// one). Groups that never run at once (PoCL with one
 // thread) do no harm: a group that starts after the stop finds control[0] = -1.
 // control = (step or phase, ranges finished in it, stable checks, checks), all 0 at the start;
 // claims and column_claims start at -1 (as the host makes the buffers: one launch a network).
@@ -870,9 +821,7 @@ __kernel void neuron_step_blocked(STEP_BLOCKED_PARAMS) {
 // stop parity, checks; ints in float bits), then energy_trace[c] = E at check c for c <
 // n_checks (E as the sum of row_energy in row order, where segment_sum adds a tree: equal up to
 // float rounding), then V and u of every slot as the network stopped (n_rows * ROW_PAD each,
-// copied by the group that stops it). Before, the host filled the claims and control and read
-// the trace, the outcome and both parities' V and u: six reads and two or three fills a solve,
-// about a tenth of the 1,000-feature solve (docs/engine.md).
+// copied by the group that stops it).
 // solve_blocked_resident: a range of the current phase is done (its writes fenced before). Returns
 // 1 for the phase's last of n ranges, after resetting the count for the next phase; the caller
 // then opens the next phase (control[0]).
@@ -988,8 +937,8 @@ __kernel void solve_blocked_resident(STEP_NETWORK_PARAMS, __global float* V0, __
 // OpenClEngineOptions::BlockStep::kRowPerGroup). The row's neighbour blocks are contiguous in t,
 // so lane l taking blocks t = first + l, first + l + STEP_GROUP, ... makes neighbouring lanes
 // read neighbouring blocks (coalesced loads), and a row's work is spread over STEP_GROUP lanes
-// instead of one: on an H200 the one-row-per-work-item step read all of Teddy's half blocks at
-// 6 % of the card's bandwidth (docs/engine.md). The lanes' partial inputs are summed in local
+// instead of one, which keeps a GPU's memory busy where a work-item per row cannot. The lanes'
+// partial inputs are summed in local
 // memory (`partial`: STEP_GROUP x ROW_PAD floats, passed by the host), then lane 0 finishes the
 // row exactly as the per-item kernel does. Same arguments as neuron_step_blocked
 // (rows_per_item is 1 here).
@@ -1041,11 +990,10 @@ __kernel void row_decisions(const int n_rows,
 }
 
 // The weight blocks, one work-item per weight: (block t, q, k) from the global id; block t of
-// row i holds W[(i,k),(j,q)] at t * BLOCK_SIZE + q * ROW_PAD + k (padded slots get 0), and
-// block_row[t] is that row i. Every work-item runs the same straight-line code, which a
-// per-row kernel (a data-dependent loop per row) could not; PoCL 3's loop vectoriser still
-// declines it ("instruction return type cannot be vectorized"), so it runs one weight per lane
-// (docs/engine.md: the next step is an explicitly vectorised build).
+// row i holds W[(i,k),(j,q)] at t * BLOCK_SIZE + q * ROW_PAD + k (column q of the block
+// contiguous, so the step adds column q times V[j,q] with vector FMAs; padded slots get 0), and
+// block_row[t] is that row i. The build of a GPU, and of every objective without the
+// vectorised per-row build below.
 __kernel void build_weight_blocks_flat(const long n_weights,
                                        __global const int* block_row,
                                        __global const int* feature_neighbours,

@@ -402,8 +402,8 @@ TEST_P(OpenClStorageTest, DenseNetworkAgreesWithTheCpuEngine) {
 }
 
 // A network solved in a batch is the network solved alone: bit for bit where its widest row gives
-// the batch's block layout (host/opencl_engine.cc: a row pad of the widest row rounded up to four
-// slots, 3 x 4 blocks up to three), else to float rounding - the batch lays a narrower network out
+// the batch's block layout (ChooseStorage in host/device_network_blocks.cc: a row pad of the
+// widest row rounded up to four slots, 3 x 4 blocks up to three), else to float rounding - the batch lays a narrower network out
 // in its wider blocks, whose step adds the block columns in another order. Seeds 513 and 213
 // (4-slot rows in batches of 8-slot ones) differed from their solves alone in the last bits of V.
 TEST_P(OpenClStorageTest, BatchEqualsIndependentSolves) {
@@ -510,7 +510,7 @@ TEST_P(OpenClStorageTest, DeviceLoopAgreesWithTheHostLoop) {
             // Several work-groups taking the ranges of rows of each step: bit for bit one
             // group's run, also with more groups than the device has threads (they never
             // all run at once). A GPU runs one group whatever is asked (stale reads across
-            // groups there, host/opencl_engine.cc).
+            // groups there, host/device_network_blocks.cc).
             for (const int groups : {2, 3, units + 1}) {
               OpenClEngineOptions spread = device;
               spread.resident_groups = groups;
