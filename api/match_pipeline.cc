@@ -2,8 +2,8 @@
 
 #include <chrono>
 
-#include "vision/lens_distortion.h"
-#include "vision/match_io.h"
+#include "vision/stereo/lens_distortion.h"
+#include "vision/stereo/match_io.h"
 
 namespace hnnstereo::api {
 

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "vision/matcher_presets.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::api {
 

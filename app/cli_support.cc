@@ -1,6 +1,6 @@
 #include "app/cli_support.h"
 
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 #include <unistd.h>
 

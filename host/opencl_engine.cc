@@ -9,15 +9,14 @@
 #include <stdexcept>
 
 #include "host/hopfield_energy.h"
+#include "common/timing.h"
 
 namespace hnnstereo::hnn {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using common::MillisecondsSince;
 
 constexpr int kLocalSize = 64;  // power of two, for segment_sum; PoCL vectorises across it
 // The fused step kernels' `check` argument (STEP_BLOCKED_PARAMS in kernels/hopfield.cl: the
