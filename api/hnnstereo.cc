@@ -7,9 +7,9 @@
 #include "api/match_pipeline.h"
 #include "api/matcher_settings.h"
 #include "calib/calibration.h"
-#include "vision/image.h"
-#include "vision/lens_distortion.h"
-#include "vision/position_sensing.h"
+#include "common/image.h"
+#include "vision/stereo/lens_distortion.h"
+#include "vision/sensing/position_sensing.h"
 
 #ifndef HNNSTEREO_VERSION
 #define HNNSTEREO_VERSION "0.0.0"

@@ -4,9 +4,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "vision/lens_distortion.h"
-#include "vision/match_io.h"
-#include "vision/setup_checks.h"
+#include "vision/stereo/lens_distortion.h"
+#include "vision/stereo/match_io.h"
+#include "vision/stereo/setup_checks.h"
 
 namespace hnnstereo::api {
 

@@ -9,9 +9,9 @@
 #include "api/matcher_settings.h"
 #include "calib/calibration.h"
 #include "host/opencl_runtime.h"
-#include "vision/matcher_presets.h"
-#include "vision/setup_checks.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/stereo/setup_checks.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::api {
 

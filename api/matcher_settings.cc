@@ -8,7 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "vision/features.h"
+#include "vision/features/features.h"
 
 namespace hnnstereo::api {
 namespace {

@@ -11,8 +11,8 @@
 #include <utility>
 #include <vector>
 
-#include "vision/matcher_presets.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::api {
 

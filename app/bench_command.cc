@@ -9,7 +9,7 @@
 
 #include "app/cli_support.h"
 #include "app/commands.h"
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "perf/throughput_bench.h"
 
 namespace hnnstereo::app {

@@ -4,8 +4,8 @@
 
 #include <stdexcept>
 
-#include "vision/lens_distortion.h"
-#include "vision/setup_checks.h"
+#include "vision/stereo/lens_distortion.h"
+#include "vision/stereo/setup_checks.h"
 
 namespace hnnstereo::app {
 

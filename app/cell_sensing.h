@@ -11,8 +11,8 @@
 #include "app/cli_support.h"
 #include "calib/calibration.h"
 #include "robot/pick_planning.h"
-#include "vision/image.h"
-#include "vision/position_sensing.h"
+#include "common/image.h"
+#include "vision/sensing/position_sensing.h"
 
 namespace hnnstereo::app {
 

@@ -1,7 +1,7 @@
 #include "app/cli_support.h"
 
 #include "api/match_pipeline.h"
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 #include <opencv2/imgcodecs.hpp>
 

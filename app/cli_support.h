@@ -13,8 +13,8 @@
 
 #include "api/matcher_settings.h"
 #include "host/opencl_runtime.h"
-#include "vision/matcher_presets.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::app {
 

@@ -10,13 +10,14 @@
 
 #include "app/cli_support.h"
 #include "app/commands.h"
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "calib/circle_calibration.h"
-#include "vision/overlay.h"
-#include "vision/plots.h"
-#include "vision/ply.h"
-#include "vision/position_sensing.h"
-#include "vision/scene_render.h"
+#include "vision/stereo/overlay.h"
+#include "vision/sensing/plots.h"
+#include "vision/sensing/ply.h"
+#include "vision/sensing/position_sensing.h"
+#include "vision/eval/truth_comparison.h"
+#include "vision/synth/scene_render.h"
 
 namespace hnnstereo::app {
 namespace {

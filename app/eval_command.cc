@@ -9,14 +9,14 @@
 
 #include "app/cli_support.h"
 #include "app/commands.h"
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "host/decode.h"
-#include "vision/eval_plot.h"
-#include "vision/evaluation.h"
-#include "vision/match_io.h"
-#include "vision/matcher_presets.h"
-#include "vision/middlebury.h"
-#include "vision/overlay.h"
+#include "vision/eval/eval_plot.h"
+#include "vision/eval/evaluation.h"
+#include "vision/stereo/match_io.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/eval/middlebury.h"
+#include "vision/stereo/overlay.h"
 
 namespace hnnstereo::app {
 namespace {

@@ -11,13 +11,14 @@
 #include "app/cli_support.h"
 #include "app/robot_link_flags.h"
 #include "app/commands.h"
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "calib/calibration.h"
-#include "vision/overlay.h"
-#include "vision/plots.h"
-#include "vision/ply.h"
-#include "vision/position_sensing.h"
-#include "vision/setup_checks.h"
+#include "vision/stereo/overlay.h"
+#include "vision/sensing/plots.h"
+#include "vision/sensing/ply.h"
+#include "vision/sensing/position_sensing.h"
+#include "vision/stereo/setup_checks.h"
+#include "vision/sensing/swapped_cameras.h"
 
 namespace hnnstereo::app {
 namespace {

@@ -7,9 +7,9 @@
 
 #include "app/commands.h"
 #include "calib/calibration.h"
-#include "vision/image.h"
-#include "vision/position_sensing.h"
-#include "vision/setup_checks.h"
+#include "common/image.h"
+#include "vision/sensing/position_sensing.h"
+#include "vision/stereo/setup_checks.h"
 
 namespace hnnstereo::app {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "app/cli_support.h"
 #include "app/commands.h"
-#include "vision/scene_render.h"
+#include "vision/synth/scene_render.h"
 
 namespace hnnstereo::app {
 namespace {

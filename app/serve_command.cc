@@ -19,7 +19,7 @@
 #include "app/cli_support.h"
 #include "app/commands.h"
 #include "app/robot_link_flags.h"
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "robot/cell_loop.h"
 #include "web/cell_status.h"
 

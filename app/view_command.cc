@@ -15,8 +15,8 @@
 #include "app/robot_link_flags.h"
 #include "calib/calibration.h"
 #include "robot/pick_planning.h"
-#include "vision/image.h"
-#include "vision/lens_distortion.h"
+#include "common/image.h"
+#include "vision/stereo/lens_distortion.h"
 #include "web/cell_status.h"
 
 namespace hnnstereo::app {

@@ -11,9 +11,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 #include "calib/epipolar.h"
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 namespace hnnstereo::calib {
 namespace {

@@ -9,7 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
+#include "common/format.h"
 
 namespace hnnstereo::calib {
 namespace {
@@ -21,11 +22,7 @@ nlohmann::json StatisticsToJson(const ReprojectionStatistics& s) {
           {"max_px", s.max_px},     {"num_points", s.residuals_px.size()}};
 }
 
-std::string Fixed(double value, int precision = 3) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(precision) << value;
-  return out.str();
-}
+using common::Fixed;
 
 }  // namespace
 

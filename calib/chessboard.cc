@@ -11,7 +11,7 @@
 
 #include "calib/dlt.h"
 #include "calib/fundamental.h"
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 namespace hnnstereo::calib {
 

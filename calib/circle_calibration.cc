@@ -12,11 +12,11 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "calib/atomic_file.h"
-#include "calib/circle_target_render.h"
+#include "common/atomic_file.h"
+#include "calib/circle_target.h"
 #include "calib/epipolar.h"
 #include "calib/fundamental.h"
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 namespace hnnstereo::calib {
 namespace {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -555,6 +556,15 @@ CircleGridDetection DetectCircleGrid(const cv::Mat& image, const CircleGridGeome
                                      const CircleDetectionOptions& detection_options,
                                      const CircleGridOptions& grid_options) {
   return FindCircleGrid(DetectCircleBlobs(image, detection_options), grid, grid_options);
+}
+
+Eigen::Matrix4d WorldFromTargetFlat(const Eigen::Vector3d& origin_mm, double yaw_deg) {
+  Eigen::Matrix4d world_from_target = Eigen::Matrix4d::Identity();
+  world_from_target.block<3, 3>(0, 0) =
+      Eigen::AngleAxisd(yaw_deg * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ())
+          .toRotationMatrix();
+  world_from_target.block<3, 1>(0, 3) = origin_mm;
+  return world_from_target;
 }
 
 }  // namespace hnnstereo::calib

@@ -128,4 +128,9 @@ CircleGridDetection DetectCircleGrid(const cv::Mat& image, const CircleGridGeome
 /// 0, 90, 180, 270 degrees), 2 otherwise (0, 180).
 std::vector<std::vector<int>> GridRotations(int rows, int cols);
 
+/// world_from_target for a target lying flat (its +z = world +z) with circle (0, 0) at
+/// `origin_mm` and its +x axis turned by `yaw_deg` about world +z (counter-clockwise seen from
+/// above). The pose form of target.yml (docs/calibration.md).
+Eigen::Matrix4d WorldFromTargetFlat(const Eigen::Vector3d& origin_mm, double yaw_deg);
+
 }  // namespace hnnstereo::calib

@@ -9,7 +9,7 @@
 #include <stdexcept>
 
 #include "calib/circle_calibration.h"
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 namespace hnnstereo::calib {
 

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::vector<unsigned char> encoded(data, data + size);

@@ -5,7 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <exception>
 
-#include "calib/input_limits.h"
+#include "common/input_limits.h"
 #include "fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "fuzz_support.h"
-#include "vision/middlebury.h"
+#include "vision/eval/middlebury.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   namespace fuzz = hnnstereo::fuzz;

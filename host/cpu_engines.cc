@@ -6,15 +6,14 @@
 #include <stdexcept>
 
 #include "host/hopfield_energy.h"
+#include "common/timing.h"
 
 namespace hnnstereo::hnn {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+using common::MillisecondsSince;
 
 void CheckOptions(const EnergyOptions& energy, const DynamicsOptions& dynamics) {
   if (auto error = energy.Check(); !error.empty()) throw std::invalid_argument(error);

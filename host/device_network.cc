@@ -8,10 +8,6 @@
 
 namespace hnnstereo::hnn::device {
 
-double MillisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
 cl::NDRange RoundedRange(std::size_t n) {
   const std::size_t groups = (n + kLocalSize - 1) / kLocalSize;
   return cl::NDRange(std::max<std::size_t>(groups, 1) * kLocalSize);

@@ -15,6 +15,7 @@
 #include "host/hopfield_options.h"
 #include "host/hopfield_problem.h"
 #include "host/opencl_engine.h"
+#include "common/timing.h"
 #include "host/opencl_runtime.h"
 #include "host/solve_report.h"
 
@@ -22,7 +23,7 @@ namespace hnnstereo::hnn::device {
 
 using Clock = std::chrono::steady_clock;
 
-double MillisecondsSince(Clock::time_point start);
+using common::MillisecondsSince;
 
 inline constexpr int kLocalSize = 64;  // power of two, for segment_sum; PoCL vectorises across it
 

@@ -8,7 +8,7 @@
 #include <thread>
 
 #include "host/hopfield_energy.h"
-#include "host/point_grid.h"
+#include "common/point_grid.h"
 
 namespace hnnstereo::hnn {
 namespace {

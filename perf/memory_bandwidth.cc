@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include "host/cpu_clones.h"
+#include "common/cpu_clones.h"
 #include "host/huge_pages.h"
 
 namespace hnnstereo::perf {

@@ -12,10 +12,10 @@
 #include "perf/device_bandwidth.h"
 #include "perf/memory_bandwidth.h"
 #include "perf/statistics.h"
-#include "vision/candidates.h"
-#include "vision/correlation.h"
-#include "vision/features.h"
-#include "vision/image.h"
+#include "vision/stereo/candidates.h"
+#include "vision/stereo/correlation.h"
+#include "vision/features/features.h"
+#include "common/image.h"
 
 namespace hnnstereo::perf {
 namespace {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "host/opencl_runtime.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::perf {
 

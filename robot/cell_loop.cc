@@ -5,13 +5,12 @@
 #include <stdexcept>
 #include <thread>
 
+#include "common/timing.h"
+
 namespace hnnstereo::robot {
 namespace {
 
-double MillisecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-      .count();
-}
+using common::MillisecondsSince;
 
 }  // namespace
 

@@ -6,8 +6,8 @@
 #include <opencv2/core/eigen.hpp>
 #include <stdexcept>
 
-#include "calib/atomic_file.h"
-#include "calib/input_limits.h"
+#include "common/atomic_file.h"
+#include "common/input_limits.h"
 
 namespace hnnstereo::robot {
 

@@ -8,8 +8,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "vision/overlay.h"
-#include "vision/plots.h"
+#include "vision/stereo/overlay.h"
+#include "vision/sensing/plots.h"
 
 namespace hnnstereo::web {
 namespace {

@@ -15,7 +15,7 @@
 
 #include "calib/calibration.h"
 #include "cli_runner.h"
-#include "vision/position_sensing.h"
+#include "vision/sensing/position_sensing.h"
 
 namespace {
 

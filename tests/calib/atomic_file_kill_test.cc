@@ -3,7 +3,7 @@
 // MATCHES.csv and the reports; WriteAtomically with cv::FileStorage for CAL.yml; the hnnstereo
 // executable itself), each killed at least 100 times. Seeded; the seed is printed.
 
-#include "calib/atomic_file.h"
+#include "common/atomic_file.h"
 
 #include <gtest/gtest.h>
 #include <signal.h>

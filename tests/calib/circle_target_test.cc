@@ -6,7 +6,7 @@
 #include <random>
 
 #include "calib/circle_calibration.h"
-#include "calib/circle_target_render.h"
+#include "vision/synth/circle_target_render.h"
 #include "calib/dlt.h"
 #include "synthetic_rig.h"
 

@@ -14,7 +14,7 @@
 
 #include "calib/calibration.h"
 #include "calib/circle_calibration.h"
-#include "calib/circle_target_render.h"
+#include "vision/synth/circle_target_render.h"
 
 namespace hnnstereo::calib::testing {
 

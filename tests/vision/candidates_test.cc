@@ -10,8 +10,8 @@
 
 #include "calib/calibration.h"
 #include "calib/epipolar.h"
-#include "vision/candidates.h"
-#include "vision/correlation.h"
+#include "vision/stereo/candidates.h"
+#include "vision/stereo/correlation.h"
 
 namespace hnnstereo::vision {
 namespace {

@@ -1,5 +1,5 @@
 // Leader clustering (thesis 6.2.10) and 3D grid density clustering on seeded synthetic points.
-#include "vision/clustering.h"
+#include "vision/sensing/clustering.h"
 
 #include <gtest/gtest.h>
 

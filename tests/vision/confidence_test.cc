@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "vision/matcher_presets.h"
-#include "vision/middlebury.h"
-#include "vision/stereo_matcher.h"
+#include "vision/stereo/matcher_presets.h"
+#include "vision/eval/middlebury.h"
+#include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::vision {
 namespace {

@@ -1,4 +1,4 @@
-#include "vision/correlation.h"
+#include "vision/stereo/correlation.h"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // Scoring, baselines and refinements on seeded synthetic pairs with known disparity.
-#include "vision/evaluation.h"
+#include "vision/eval/evaluation.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +12,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "vision/eval_plot.h"
-#include "vision/matcher_presets.h"
+#include "vision/eval/eval_plot.h"
+#include "vision/stereo/matcher_presets.h"
 
 namespace hnnstereo::vision {
 namespace {

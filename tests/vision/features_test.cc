@@ -1,4 +1,4 @@
-#include "vision/features.h"
+#include "vision/features/features.h"
 
 #include <gtest/gtest.h>
 

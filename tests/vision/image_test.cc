@@ -1,4 +1,4 @@
-#include "vision/image.h"
+#include "common/image.h"
 
 #include <gtest/gtest.h>
 

@@ -5,7 +5,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
-#include "vision/lens_distortion.h"
+#include "vision/stereo/lens_distortion.h"
 
 namespace hnnstereo::vision {
 namespace {

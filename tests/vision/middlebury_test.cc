@@ -1,6 +1,6 @@
 // Middlebury loading: PFM, layouts, scale factors, occlusion masks, and the disparity convention
 // checked photometrically on the real sets in ../shared/datasets (skipped when absent).
-#include "vision/middlebury.h"
+#include "vision/eval/middlebury.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,5 +1,5 @@
 // Part poses: minimum-area rectangle, central moments (thesis 6.2.11), top-face height/centroid.
-#include "vision/object_pose.h"
+#include "vision/sensing/object_pose.h"
 
 #include <gtest/gtest.h>
 

@@ -66,7 +66,8 @@
 #include <vector>
 
 #include "calib/circle_calibration.h"
-#include "vision/position_sensing.h"
+#include "vision/sensing/position_sensing.h"
+#include "vision/eval/truth_comparison.h"
 
 namespace hnnstereo::vision {
 namespace {

@@ -3,7 +3,7 @@
 //
 // The default run checks a few scenes; HNNSTEREO_ACCEPTANCE=1 runs the full acceptance set (20
 // scenes with 1-9 parts, and the same with Gaussian noise on F) and prints the figures.
-#include "vision/position_sensing.h"
+#include "vision/sensing/position_sensing.h"
 
 #include <gtest/gtest.h>
 
@@ -21,6 +21,7 @@
 
 #include "calib/circle_calibration.h"
 #include "calib/epipolar.h"
+#include "vision/eval/truth_comparison.h"
 
 namespace hnnstereo::vision {
 namespace {

@@ -1,5 +1,5 @@
 // The synthetic pick cell: seeded, truth consistent with the pixels, target calibratable.
-#include "vision/scene_render.h"
+#include "vision/synth/scene_render.h"
 
 #include <gtest/gtest.h>
 

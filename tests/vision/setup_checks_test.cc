@@ -1,6 +1,6 @@
 // Setup checks: one image given twice (identical, noisy, blurred, re-saved copies) is refused,
 // real pairs (Teddy, rendered cells) pass, a swapped rectified pair is seen, disparity ranges.
-#include "vision/setup_checks.h"
+#include "vision/stereo/setup_checks.h"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +10,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "vision/image.h"
-#include "vision/scene_render.h"
+#include "common/image.h"
+#include "vision/sensing/swapped_cameras.h"
+#include "vision/synth/scene_render.h"
 
 namespace hnnstereo::vision {
 namespace {

@@ -1,6 +1,6 @@
 // ExtendTopToImageEdges on a drawn image: a camera 700 mm above the table looks straight down
 // at a bright 60 x 30 mm top face 40 mm tall on a dark table.
-#include "vision/top_face_edges.h"
+#include "vision/sensing/top_face_edges.h"
 
 #include <gtest/gtest.h>
 

@@ -6,7 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "calib/epipolar.h"
-#include "vision/uncalibrated.h"
+#include "vision/stereo/uncalibrated.h"
 
 namespace hnnstereo::vision {
 namespace {

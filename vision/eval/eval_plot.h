@@ -1,0 +1,22 @@
+#pragma once
+// The precision-versus-density plot of `hnnstereo eval` (OpenCV drawing, no plotting library).
+
+#include <opencv2/core.hpp>
+
+#include "vision/eval/evaluation.h"
+
+namespace hnnstereo::vision {
+
+/// One panel per pair: precision within 1 px (y, 0-100 %) against density (x, share of Canny
+/// edge pixels with ground truth, 0-100 %), one coloured curve per method (most confident
+/// matches first), single-point methods as dots; a legend in the first panel. CV_8UC3.
+cv::Mat DrawPrecisionDensityPlot(const EvaluationReport& report);
+
+/// One pair's ranked comparison (PairEvaluation::ranked), 1000x680: precision within 1 px (y,
+/// range fitted to the data) against density (x, 0-100 % of Canny edge pixels with ground truth);
+/// ranked methods as lines (HNN presets thick), swept methods as markers joined in sweep order
+/// and labelled with their uniqueness ratio; dashed guides at 25 / 50 / 75 %; a legend.
+/// Empty when the pair has no ranked methods. CV_8UC3.
+cv::Mat DrawRankedPlot(const PairEvaluation& pair);
+
+}  // namespace hnnstereo::vision

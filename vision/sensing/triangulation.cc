@@ -1,0 +1,33 @@
+#include "vision/sensing/triangulation.h"
+
+#include <Eigen/SVD>
+#include <cmath>
+
+namespace hnnstereo::vision {
+
+std::optional<TriangulatedPoint> TriangulateLinear(const Eigen::Matrix<double, 3, 4>& P1,
+                                                   const Eigen::Matrix<double, 3, 4>& P2,
+                                                   const Eigen::Vector2d& left_point,
+                                                   const Eigen::Vector2d& right_point) {
+  Eigen::Matrix4d A;
+  A.row(0) = left_point.x() * P1.row(2) - P1.row(0);
+  A.row(1) = left_point.y() * P1.row(2) - P1.row(1);
+  A.row(2) = right_point.x() * P2.row(2) - P2.row(0);
+  A.row(3) = right_point.y() * P2.row(2) - P2.row(1);
+  Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
+  const Eigen::Vector4d X = svd.matrixV().col(3);
+  if (std::abs(X(3)) < 1e-12 || !X.allFinite()) return std::nullopt;
+  TriangulatedPoint result;
+  result.point_in_world = X.hnormalized();
+  const Eigen::Vector3d x1 = P1 * X, x2 = P2 * X;
+  // Positive depth: the projective depth has the sign of w * det(M) (H&Z 6.2.3).
+  const double depth1 = x1.z() * X(3) * P1.leftCols<3>().determinant();
+  const double depth2 = x2.z() * X(3) * P2.leftCols<3>().determinant();
+  result.in_front = depth1 > 0 && depth2 > 0;
+  const double e1 = (x1.hnormalized() - left_point).squaredNorm();
+  const double e2 = (x2.hnormalized() - right_point).squaredNorm();
+  result.reprojection_error_px = std::sqrt(0.5 * (e1 + e2));
+  return result;
+}
+
+}  // namespace hnnstereo::vision

@@ -1,0 +1,47 @@
+#include "vision/stereo/lens_distortion.h"
+
+#include <Eigen/LU>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace hnnstereo::vision {
+namespace {
+
+cv::Mat CameraMatrix(const Eigen::Matrix3d& K) {
+  cv::Mat camera;
+  cv::eigen2cv(K, camera);
+  return camera;
+}
+
+}  // namespace
+
+cv::Mat UndistortImage(const cv::Mat& image, const Eigen::Matrix3d& K,
+                       const std::vector<double>& distortion) {
+  cv::Mat undistorted;
+  cv::undistort(image, undistorted, CameraMatrix(K), cv::Mat(distortion, true), CameraMatrix(K));
+  return undistorted;
+}
+
+std::vector<Eigen::Vector2f> DistortPoints(const std::vector<Eigen::Vector2f>& undistorted,
+                                           const Eigen::Matrix3d& K,
+                                           const std::vector<double>& distortion) {
+  if (undistorted.empty()) return {};
+  // Normalised rays of the undistorted pixels, projected through (K, D) with no rotation.
+  const Eigen::Matrix3d K_inv = K.inverse();
+  std::vector<cv::Point3d> rays;
+  rays.reserve(undistorted.size());
+  for (const auto& p : undistorted) {
+    const Eigen::Vector3d ray = K_inv * Eigen::Vector3d(p.x(), p.y(), 1.0);
+    rays.emplace_back(ray.x() / ray.z(), ray.y() / ray.z(), 1.0);
+  }
+  std::vector<cv::Point2d> pixels;
+  cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), CameraMatrix(K),
+                    cv::Mat(distortion, true), pixels);
+  std::vector<Eigen::Vector2f> out;
+  out.reserve(pixels.size());
+  for (const auto& p : pixels) out.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  return out;
+}
+
+}  // namespace hnnstereo::vision
