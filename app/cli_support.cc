@@ -110,6 +110,11 @@ std::vector<std::string> ExpandConfigArguments(
   expanded.insert(expanded.end(), rest.begin(), rest.begin() + static_cast<long>(head));
   expanded.insert(expanded.end(), from_file.begin(), from_file.end());
   expanded.insert(expanded.end(), rest.begin() + static_cast<long>(head), rest.end());
+  // The command still sees its --config, so the output guard counts the file as an input.
+  if (!known_option || known_option("--config")) {
+    expanded.push_back("--config");
+    expanded.push_back(config_path);
+  }
   return expanded;
 }
 

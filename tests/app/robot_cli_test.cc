@@ -174,9 +174,9 @@ TEST_F(RobotCli, ServeRefusesBadInputBeforeOpeningTheLink) {
       RunCli("serve" + replay + " --left a.png --frame " + frame + dry), "--replay replaces",
       {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve" + replay + " --frame " + frame + dry + " --max-poses 0"),
-                     "max_poses", {"picks.jsonl"});
+                     "--max-poses must be", {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve" + replay + " --frame " + frame + dry + " --speed 2"),
-                     "speed_fraction", {"picks.jsonl"});
+                     "--speed must be", {"picks.jsonl"});
 }
 
 TEST_F(RobotCli, SendWritesACellCommand) {
