@@ -277,6 +277,11 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
                                   " (the match command's flags without dashes, e.g. max-features)");
     }
   }
+  // The library allows 0 steps (sizing a network); from a user it would solve nothing.
+  if (settings.given.count("max-steps") > 0 && o.dynamics.max_steps < 1) {
+    throw std::invalid_argument("--max-steps must be >= 1 (0 steps leave every neuron where it "
+                                "started: no match)");
+  }
   ApplyPreset(preset, strings, settings);
   ParseNamedSettings(strings, settings, *vision::FindPreset(preset));
   const double memory_budget_mb = ParseDouble("memory-budget-mb", strings["memory-budget-mb"]);

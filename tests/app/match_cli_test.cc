@@ -199,6 +199,7 @@ TEST_F(MatchCli, NonsenseRangesAreRefusedNamingTheOption) {
   ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity -5")), "--max-disparity");
   ExpectCleanFailure(RunCli(Teddy("--rectified --dt 0")), "--dt must be");
   ExpectCleanFailure(RunCli(Teddy("--rectified --top-k -3")), "--top-k must be");
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-steps 0")), "--max-steps must be >= 1");
   ExpectCleanFailure(RunCli(Teddy("--rectified --engine cpu --device 3")),
                      "--device '3' is for --engine opencl");
   ExpectCleanFailure(RunCli(Teddy("--rectified --overlay " + Path("o.jpgx"))), "--overlay");
