@@ -62,6 +62,16 @@ void GuardOutputsEverywhere(CLI::App* app) {
   }
 }
 
+constexpr const char* kVersion = "hnnstereo 0.1.0";
+
+// `--version` on every command, not only before it.
+void VersionEverywhere(CLI::App* app) {
+  for (CLI::App* sub : app->get_subcommands([](CLI::App*) { return true; })) {
+    sub->set_version_flag("--version", kVersion);
+    VersionEverywhere(sub);
+  }
+}
+
 // Help laid out the same way everywhere: description, usage, options, then the examples. A
 // description that carries its examples ("...\nExample...") gives them to the footer.
 void ExamplesAfterOptions(CLI::App* app) {
@@ -103,7 +113,7 @@ int main(int argc, char** argv) {
       "work failed, 2 usage error (bad option, --config file or refused setup).",
       "hnnstereo"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "hnnstereo 0.1.0");
+  app.set_version_flag("--version", kVersion);
   hnnstereo::app::AddMatchCommand(app);
   hnnstereo::app::AddCalibrateCommand(app);
   hnnstereo::app::AddBenchCommand(app);
@@ -118,6 +128,7 @@ int main(int argc, char** argv) {
   hnnstereo::app::AddDevicesCommand(app);
   AddQuietEverywhere(&app);
   GuardOutputsEverywhere(&app);
+  VersionEverywhere(&app);
   ExamplesAfterOptions(&app);
 
   std::vector<std::string> arguments(argv, argv + argc);

@@ -256,6 +256,14 @@ TEST_F(MatchCli, DisparityMapsHoldTheMatchesDisparities) {
   EXPECT_EQ(known, expected.size()) << "NaN wherever nothing matched";
 }
 
+TEST_F(MatchCli, EveryCommandTakesVersion) {
+  for (const std::string command : {"match", "pick", "serve", "robot send", "calibrate"}) {
+    const CliResult result = RunCli(command + " --version");
+    EXPECT_EQ(result.exit_code, 0) << command << ": " << result.output;
+    EXPECT_NE(result.output.find("hnnstereo 0.1.0"), std::string::npos) << result.output;
+  }
+}
+
 TEST_F(MatchCli, DisparityMapsNeedARectifiedPair) {
   ExpectCleanFailure(RunCli("match --left " + kTeddy + "/im2.png --right " + kTeddy +
                             "/im6.png --out " + Path("m.csv") + " --disparity " + Path("e.pfm")),
