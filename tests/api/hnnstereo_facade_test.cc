@@ -104,7 +104,10 @@ TEST(HnnstereoFacadeBadInput, ThrowsOneLineReasons) {
   expect_throw([&] { matcher.Match(cv::Mat(), right, 64); }, "left image is empty", true);
   expect_throw([&] { matcher.Match(left, right(cv::Rect(0, 0, 100, 100)), 64); }, "differ in size", true);
   expect_throw([&] { matcher.Match(left, right, hnnstereo::Calibration()); }, "calibration is empty", true);
-  expect_throw([&] { matcher.Match(cv::Mat::zeros(64, 64, CV_8U), cv::Mat::zeros(64, 64, CV_8U), 64); },
+  // Refused before any work, as `hnnstereo match` refuses them (api::CheckMatchSetup).
+  expect_throw([&] { matcher.Match(left, left, 64); }, "left and right are identical", true);
+  expect_throw([&] { matcher.Match(left, right, 0); }, "--max-disparity 0.0 must be", true);
+  expect_throw([&] { matcher.Match(cv::Mat::zeros(64, 64, CV_8U), cv::Mat(64, 64, CV_8U, cv::Scalar(9)), 32); },
                "no features", false);
   expect_throw([] { hnnstereo::LoadCalibration("/nonexistent/cal.yml"); }, "cal.yml", false);
 }

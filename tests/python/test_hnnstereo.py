@@ -112,7 +112,8 @@ def test_bad_input_raises_with_one_line_reasons(teddy):
         (ValueError, lambda: hnnstereo.match(left, right, top_k="many"), "top-k"),
         (RuntimeError, lambda: hnnstereo.load_calibration("/nonexistent/cal.yml"), "cal.yml"),
         (RuntimeError, lambda: hnnstereo.match(np.zeros((64, 64), np.uint8),
-                                               np.full((64, 64), 9, np.uint8)), "no features"),
+                                               np.full((64, 64), 9, np.uint8), max_disparity=32),
+         "no features"),
         # Refused as `hnnstereo match` refuses them (one setup check for both).
         (ValueError, lambda: hnnstereo.match(left, left), "left and right are identical"),
         (ValueError, lambda: hnnstereo.match(left, right, max_disparity=0), "--max-disparity"),
