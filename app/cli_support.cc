@@ -271,6 +271,11 @@ void MatcherFlags::Resolve() {
   // and Python alike: the values CLI11 bound are the base; the string flags, and the flags the
   // preset yields to when given, are the overrides.
   const auto given = [](const CLI::Option* option) { return option && option->count() > 0; };
+  // The library allows 0 steps (sizing a network); from the command line it would solve nothing.
+  if (options.dynamics.max_steps < 1) {
+    throw std::invalid_argument("--max-steps must be >= 1 (0 steps leave every neuron where it "
+                                "started: no match)");
+  }
   char budget[64];
   std::snprintf(budget, sizeof(budget), "%.17g", memory_budget_mb);
   api::Overrides overrides = {{"features", features},   {"engine", engine},

@@ -153,7 +153,11 @@ TEST(SetupChecks, DisparityRangeBeyondTheWidthIsNamed) {
   EXPECT_NE(DisparityRangeProblem(0, 1e9, 450).find("--max-disparity"), std::string::npos);
   EXPECT_NE(DisparityRangeProblem(0, 450, 450).find("image width (450 px"), std::string::npos);
   EXPECT_NE(DisparityRangeProblem(-1e6, 0, 450).find("--min-disparity"), std::string::npos);
-  EXPECT_NE(DisparityRangeProblem(10, 5, 450).find("above --max-disparity"), std::string::npos);
+  EXPECT_NE(DisparityRangeProblem(10, 5, 450).find("must be above --min-disparity"),
+            std::string::npos);
+  // A range of one disparity is no search (issue 41: --max-disparity 0 gave nonsense matches).
+  EXPECT_NE(DisparityRangeProblem(0, 0, 450).find("--max-disparity 0.0 must be above"),
+            std::string::npos);
   EXPECT_NE(DisparityRangeProblem(0, std::numeric_limits<double>::infinity(), 450).find("finite"),
             std::string::npos);
 }
