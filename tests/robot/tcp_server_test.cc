@@ -277,7 +277,7 @@ TEST(TcpServer, RequestsOverTheRateWaitAndAreServedNotRefused) {
   ASSERT_TRUE(SendBytes(flood, lines));
   ASSERT_TRUE(s.PumpUntil([&] { return s.protocol.requests == 25; }));
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-  // 5 at once, then one each 5 ms: at least 19 intervals (a slower machine only adds).
+  // The bucket holds 5 and refills 200 a second: 25 requests span at least 19 refill intervals.
   EXPECT_GE(seconds, 19 / 200.0);
   EXPECT_TRUE(s.protocol.closed.empty());
   EXPECT_TRUE(s.Served(flood));

@@ -21,8 +21,8 @@ struct SwapComparison {
 /// their epipolar segments over the heights `z_range_mm` (ProbePoint), once as given and once
 /// with the two images exchanged (the same calibration). The images of a swapped pair correlate far
 /// better the other way round. looks_swapped: swapped_zncc >= 0.7 and >= as_given_zncc + 0.15.
-/// Measured on rendered cell seed 7: 1.00 as given vs 0.70 exchanged; given right-left, the
-/// reverse. Tens of ms; callers run it only when something looks wrong (no parts found).
+/// Callers run it only when something looks wrong (no parts found); covered by the
+/// SwappedCellPairCorrelatesTheOtherWayRound (tests/vision/setup_checks_test.cc).
 SwapComparison CompareWithSwappedCameras(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                          const calib::StereoCalibration& calibration,
                                          std::pair<double, double> z_range_mm);
