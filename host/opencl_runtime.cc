@@ -189,7 +189,9 @@ Runtime::Runtime(cl::Context context, cl::Device device, std::string description
       device_(std::move(device)),
       queue_(context_, device_),
       description_(std::move(description)),
-      is_gpu_((device_.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0) {}
+      is_gpu_((device_.getInfo<CL_DEVICE_TYPE>() & CL_DEVICE_TYPE_GPU) != 0),
+      program_cache_serves_(ProgramCacheServes(
+          cl::Platform(device_.getInfo<CL_DEVICE_PLATFORM>()).getInfo<CL_PLATFORM_NAME>())) {}
 
 std::unique_ptr<Runtime> Runtime::Create(const DeviceSelection& selection, std::string* why_not) {
   std::vector<cl::Platform> platforms;
@@ -257,7 +259,7 @@ const cl::Program& Runtime::Program(const std::string& name, const std::string& 
   const std::string build_options = options + " -cl-std=CL1.2";
   // The on-disk binary cache (host/program_cache.h): a binary built earlier for this device,
   // driver, source and options skips the compiler; anything wrong with it means a rebuild.
-  const std::string cache_dir = ProgramCacheDirectory();
+  const std::string cache_dir = program_cache_serves_ ? ProgramCacheDirectory() : std::string();
   std::string cache_key, cache_entry;
   if (!cache_dir.empty()) {
     const std::string device_name = device_.getInfo<CL_DEVICE_NAME>();

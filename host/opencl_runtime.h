@@ -112,6 +112,7 @@ class Runtime {
   cl::CommandQueue queue_;
   std::string description_;
   bool is_gpu_ = false;
+  bool program_cache_serves_ = true;  ///< ProgramCacheServes(this device's platform)
   std::map<std::tuple<std::string, std::string>, cl::Program> programs_;
   std::map<std::string, std::pair<cl::Buffer, std::size_t>> scratch_;
 };

@@ -43,6 +43,10 @@ std::string ProgramCacheDirectory() {
   return {};
 }
 
+bool ProgramCacheServes(const std::string& platform) {
+  return platform.find("Portable Computing Language") == std::string::npos;
+}
+
 std::string ProgramCacheEntryName(const std::string& device, const std::string& device_version,
                                   const std::string& driver_version, const std::string& source_hash,
                                   const std::string& options) {

@@ -77,10 +77,10 @@ Eigen::Matrix2d Rotation2D(double yaw_deg) {
   return Eigen::Rotation2Dd(yaw_deg * kPi / 180.0).toRotationMatrix();
 }
 
-// Intersection of `ray` with object `index` (nearest t > t_min), into `hit` when nearer.
-void IntersectObject(const Ray& ray, const SceneObject& object, int index, double t_min,
-                     Hit* hit) {
-  const Eigen::Matrix2d object_from_world = Rotation2D(object.yaw_deg).transpose();
+// Intersection of `ray` with object `index` (nearest t > t_min), into `hit` when nearer;
+// `object_from_world` is Rotation2D(object.yaw_deg).transpose().
+void IntersectObject(const Ray& ray, const SceneObject& object,
+                     const Eigen::Matrix2d& object_from_world, int index, double t_min, Hit* hit) {
   const Eigen::Vector2d o_xy = object_from_world * (ray.origin.head<2>() - object.centre_mm);
   const Eigen::Vector2d d_xy = object_from_world * ray.direction.head<2>();
   const Eigen::Vector3d o(o_xy.x(), o_xy.y(), ray.origin.z());
@@ -148,10 +148,47 @@ void IntersectObject(const Ray& ray, const SceneObject& object, int index, doubl
   }
 }
 
-Hit CastRay(const Ray& ray, const std::vector<SceneObject>& objects, double t_min) {
+// The objects as rays meet them: each one's rotation, computed once, and a bounding sphere.
+// A ray whose line passes the sphere by more than its 1 mm margin cannot hit the object, so
+// skipping it changes no hit; the others get the exact intersection (IntersectObject).
+class RayCaster {
+ public:
+  explicit RayCaster(const std::vector<SceneObject>& objects) : objects_(objects) {
+    for (const SceneObject& object : objects) {
+      const double half_height = 0.5 * object.height_mm();
+      const double half_footprint = object.shape == SceneObject::Shape::kBox
+                                        ? 0.5 * object.size_mm.head<2>().norm()
+                                        : 0.5 * object.size_mm.x();
+      const double radius = std::hypot(half_footprint, half_height) + 1.0;
+      bounds_.push_back({Rotation2D(object.yaw_deg).transpose(),
+                         Eigen::Vector3d(object.centre_mm.x(), object.centre_mm.y(), half_height),
+                         radius * radius});
+    }
+  }
+  const std::vector<SceneObject>& objects() const { return objects_; }
+  // The nearest hit with t > t_min: an object or the table z = 0.
+  Hit Cast(const Ray& ray, double t_min) const;
+
+ private:
+  struct Bound {
+    Eigen::Matrix2d object_from_world;
+    Eigen::Vector3d centre;  // of the bounding sphere (mm)
+    double radius_squared;   // mm^2, margin included
+  };
+  const std::vector<SceneObject>& objects_;
+  std::vector<Bound> bounds_;
+};
+
+Hit RayCaster::Cast(const Ray& ray, double t_min) const {
   Hit hit;
-  for (int i = 0; i < static_cast<int>(objects.size()); ++i) {
-    IntersectObject(ray, objects[static_cast<std::size_t>(i)], i, t_min, &hit);
+  const double dd = ray.direction.squaredNorm();
+  for (int i = 0; i < static_cast<int>(objects_.size()); ++i) {
+    const Bound& bound = bounds_[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d w = bound.centre - ray.origin;
+    const double wd = w.dot(ray.direction);
+    if (w.squaredNorm() - wd * wd / dd > bound.radius_squared) continue;  // the line misses
+    IntersectObject(ray, objects_[static_cast<std::size_t>(i)], bound.object_from_world, i, t_min,
+                    &hit);
   }
   if (hit.surface == Surface::kNone) hit.object = -1;
   if (ray.direction.z() < 0.0) {  // the table z = 0
@@ -203,14 +240,14 @@ struct Lighting {
 };
 
 // Radiance (0..~1.2) at a hit seen from `eye`.
-double Shade(const Hit& hit, const Ray& ray, const std::vector<SceneObject>& objects,
+double Shade(const Hit& hit, const Ray& ray, const RayCaster& caster,
              const std::vector<std::vector<Mark>>& marks, const SceneRenderOptions& options,
              const Lighting& light) {
   if (hit.surface == Surface::kNone) return 0.0;
   const Eigen::Vector3d point = ray.origin + hit.t * ray.direction;
   // Shadow: anything between the point and the light.
   const Ray shadow_ray{point + 1e-3 * hit.normal, light.to_light};
-  const bool lit = CastRay(shadow_ray, objects, 1e-6).object < 0;
+  const bool lit = caster.Cast(shadow_ray, 1e-6).object < 0;
   const double n_dot_l = std::max(0.0, hit.normal.dot(light.to_light));
   const double shading = light.ambient + light.diffuse * n_dot_l * (lit ? 1.0 : 0.0);
   if (hit.surface == Surface::kTable) {
@@ -230,7 +267,7 @@ double Shade(const Hit& hit, const Ray& ray, const std::vector<SceneObject>& obj
     }
     return albedo * shading;
   }
-  const SceneObject& object = objects[static_cast<std::size_t>(hit.object)];
+  const SceneObject& object = caster.objects()[static_cast<std::size_t>(hit.object)];
   const std::uint64_t seed = Mix(object.texture_seed);
   double albedo = object.albedo;
   if (hit.surface == Surface::kTop && options.top_texture == TopTexture::kPlain) {
@@ -297,6 +334,7 @@ double TopVisibility(const std::vector<SceneObject>& objects, std::size_t index,
                      const Eigen::Vector3d& eye) {
   const SceneObject& object = objects[index];
   const Eigen::Matrix2d world_from_object = Rotation2D(object.yaw_deg);
+  const RayCaster caster(objects);
   int seen = 0, total = 0;
   for (int i = 0; i < 5; ++i) {
     for (int j = 0; j < 5; ++j) {
@@ -309,7 +347,7 @@ double TopVisibility(const std::vector<SceneObject>& objects, std::size_t index,
       const Eigen::Vector2d xy = object.centre_mm + world_from_object * local;
       const Eigen::Vector3d target(xy.x(), xy.y(), object.height_mm());
       const Ray ray{eye, target - eye};  // t = 1 at the target
-      const Hit hit = CastRay(ray, objects, 1e-9);
+      const Hit hit = caster.Cast(ray, 1e-9);
       ++total;
       if (hit.object == static_cast<int>(index) && std::abs(hit.t - 1.0) < 1e-6) ++seen;
     }
@@ -430,6 +468,7 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
   for (const SceneObject& object : objects) marks.push_back(MarksOf(object));
   const double gain = SceneBrightness(options);
   const Lighting light;
+  const RayCaster caster(objects);
   const int s = options.supersampling;
   cv::Mat radiance(height, width, CV_32F);
   cv::parallel_for_(cv::Range(0, height), [&](const cv::Range& rows) {
@@ -441,7 +480,7 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
           for (int j = 0; j < s; ++j) {
             const Eigen::Vector3d pixel(u + (j + 0.5) / s - 0.5, v + (i + 0.5) / s - 0.5, 1.0);
             const Ray ray{centre, M_inverse * pixel};
-            sum += Shade(CastRay(ray, objects, kEpsilonMm), ray, objects, marks, options, light);
+            sum += Shade(caster.Cast(ray, kEpsilonMm), ray, caster, marks, options, light);
           }
         }
         out[u] = static_cast<float>(255.0 * gain * sum / (s * s));
