@@ -4,8 +4,12 @@
 # once, `pip install .` of the source tree (build kept in BUILD_DIR/python-build, so later runs
 # are incremental), then pytest. Exit 77 (skipped) only when PyPI cannot be reached and
 # scikit-build-core is not installed yet.
-# Usage: run_python_tests.sh SOURCE_DIR BUILD_DIR HNNSTEREO_BINARY
+# Usage: run_python_tests.sh [--install-only] SOURCE_DIR BUILD_DIR HNNSTEREO_BINARY
+# --install-only: the venv and the module, no tests (scripts/test.sh builds the module with the
+# rest, before CTest, and then sets HNNSTEREO_PYTHON_INSTALLED=1: the test runs pytest only).
 set -euo pipefail
+install_only=0
+if [ "${1:-}" = --install-only ]; then install_only=1; shift; fi
 source_dir=$1
 build_dir=$2
 export HNNSTEREO_BINARY=$3
@@ -30,6 +34,11 @@ for module in numpy cv2 pytest; do
     { echo "the venv lacks $module: run scripts/setup.sh (python3-numpy python3-opencv python3-pytest)"; exit 1; }
 done
 
+if [ "${HNNSTEREO_PYTHON_INSTALLED:-}" = 1 ] && ((!install_only)); then
+  cd "$build_dir"
+  exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$source_dir/tests/python"
+fi
+
 launcher=()
 if command -v ccache >/dev/null; then
   launcher=(--config-settings=cmake.define.CMAKE_CXX_COMPILER_LAUNCHER=ccache)
@@ -44,5 +53,6 @@ CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2} \
   "$venv/bin/pip" install --quiet --disable-pip-version-check --no-build-isolation --no-deps \
   --config-settings=build-dir="$build_dir/python-build" "${launcher[@]}" "$source_dir"
 echo "pip install: $((SECONDS - start)) s"
+if ((install_only)); then exit 0; fi
 cd "$build_dir"
 exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$source_dir/tests/python"
