@@ -591,8 +591,7 @@ void FitTopsToImageEdges(const calib::StereoCalibration& calibration,
                          const PositionSensingOptions& options,
                          const ObjectPoseOptions& pose_options, const LeftGradients& gradients,
                          PositionSensingReport* report) {
-  const std::vector<Eigen::Vector3d> camera_centres = {calib::CameraCentre(calibration.P1),
-                                                       calib::CameraCentre(calibration.P2)};
+  const std::vector<Eigen::Vector3d> camera_centres = {calibration.C1, calibration.C2};
   for (std::size_t a = 0; a < report->objects.size(); ++a) {
     std::vector<Rectangle2D> others;
     for (std::size_t b = 0; b < report->objects.size(); ++b) {
@@ -668,7 +667,7 @@ void EstimateAndFlagPoses(const calib::StereoCalibration& calibration,
     report->objects =
         EstimateObjectPoses(report->points_in_world, report->clustering.clusters, pose_options);
     CountTouchingPoints(report->points_in_world, report->weak,
-                        {calib::CameraCentre(calibration.P1), calib::CameraCentre(calibration.P2)},
+                        {calibration.C1, calibration.C2},
                         options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
                         &report->objects);
     for (ObjectPose& pose : report->objects) {
@@ -697,13 +696,18 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   if (const std::string problem = calibration.Check(); !problem.empty()) {
     throw std::invalid_argument("calibration: " + problem);
   }
+  // The rig every stage reads: the camera centres derived here, once, from P1 and P2 (a
+  // calibration built by hand may not have filled C1, C2).
+  calib::StereoCalibration rig = calibration;
+  rig.C1 = calib::CameraCentre(rig.P1);
+  rig.C2 = calib::CameraCentre(rig.P2);
   PositionSensingReport report;
   report.match = std::move(match);
   report.timing_ms.match = report.match.timing_ms.total;
   LeftGradients gradients{left_grey, {}, {}};
 
   auto start = std::chrono::steady_clock::now();
-  TriangulateMatches(calibration, options, &gradients, &report);
+  TriangulateMatches(rig, options, &gradients, &report);
   report.timing_ms.triangulate = MillisecondsSince(start);
 
   start = std::chrono::steady_clock::now();
@@ -716,10 +720,10 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   const ObjectPoseOptions pose_options = PoseOptionsFor(options);
   KeepStrongPoints(&report);
   if (options.clustering == ClusteringMethod::kGrid) {
-    RefineGridClusters(calibration, options, pose_options, &gradients, &report);
+    RefineGridClusters(rig, options, pose_options, &gradients, &report);
   }
   const std::vector<ObjectPose> narrow_pieces = DropSmallClusters(options, pose_options, &report);
-  EstimateAndFlagPoses(calibration, options, pose_options, narrow_pieces, &gradients, &report);
+  EstimateAndFlagPoses(rig, options, pose_options, narrow_pieces, &gradients, &report);
   report.timing_ms.pose = MillisecondsSince(start);
   report.timing_ms.total = report.timing_ms.match + report.timing_ms.triangulate +
                            report.timing_ms.cluster + report.timing_ms.pose;

@@ -8,6 +8,7 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <stdexcept>
 #include <opencv2/imgproc.hpp>
 
 namespace hnnstereo::vision {
@@ -397,7 +398,7 @@ class TopFit {
         probe_(in.P, in.gradient_x, in.gradient_y, pose.height_mm, options.min_edge_gradient),
         f_(FrameOf(pose.top_rectangle)),
         step_(options.step_mm),
-        camera_(calib::CameraCentre(in.P)) {}
+        camera_(in.camera_centres.at(0)) {}
 
   const Frame& frame() const { return f_; }
   int lines_unplaced() const { return lines_unplaced_; }
@@ -682,6 +683,9 @@ class TopFit {
 TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const TopFaceEdgeInputs& inputs,
                                         const TopFaceEdgeOptions& options) {
   if (pose->round || inputs.gradient_x.empty()) return TopFaceEdgeReport{};
+  if (inputs.camera_centres.empty()) {
+    throw std::invalid_argument("ExtendTopToImageEdges needs the camera centres (P's first)");
+  }
   TopFit fit(*pose, inputs, options);
   const TopFaceEdgeReport report = fit.FitPasses();
   if (report.moved_mm() == 0.0) return report;

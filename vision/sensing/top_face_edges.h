@@ -135,8 +135,8 @@ struct TopFaceEdgeInputs {
   /// All triangulated points (world mm) and which are weak; the pose's point_indices index them.
   const std::vector<Eigen::Vector3d>& points;
   const std::vector<bool>& weak;
-  /// The centres (world mm) of the cameras that saw the points: a point seen through an
-  /// extension from below the top contradicts it.
+  /// The centres (world mm) of the cameras that saw the points, P's camera first: a point seen
+  /// through an extension from below the top contradicts it.
   const std::vector<Eigen::Vector3d>& camera_centres;
   double top_layer_mm;  ///< ObjectPoseOptions::top_layer_mm: points this near the top are on it
   double max_length_mm;  ///< no top grows longer than this (mm; the longest part)
