@@ -156,3 +156,14 @@ def test_pick_gives_the_cli_objects(tmp_path):
     for mine, theirs in zip(objects, cli_objects):
         for key in ["id", "centroid", "height", "yaw_deg", "points"]:
             assert mine[key] == theirs[key], key
+
+
+def test_module_holds_neither_the_renderer_nor_the_evaluation():
+    # The dynamic symbols: the installed module is stripped of the others.
+    nm = subprocess.run(["nm", "-D", "-C", hnnstereo._hnnstereo.__file__], capture_output=True,
+                        text=True)
+    if nm.returncode != 0:
+        pytest.skip("nm cannot read the module: " + nm.stderr.strip())
+    assert "vision::SensePositions" in nm.stdout  # the check reads the module's symbols
+    for symbol in ("vision::RenderScene", "vision::EvaluatePair", "vision::CompareWithTruth"):
+        assert symbol not in nm.stdout
