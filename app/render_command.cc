@@ -18,7 +18,7 @@ namespace {
 struct RenderArgs {
   vision::SceneRenderOptions options;
   std::string out;
-  std::string size_range, height_range, brightness, texture = "random";
+  std::string size_range, height_range, brightness, texture = "random", resolution;
   bool quiet = false;
 };
 
@@ -43,6 +43,14 @@ void ResolveRenderArgs(RenderArgs& args) {
   }
   if (!args.brightness.empty()) {
     std::tie(o.min_brightness, o.max_brightness) = ParseRange("--brightness", args.brightness);
+  }
+  if (!args.resolution.empty()) {
+    const auto [width, height] = vision::ParseResolution("--resolution", args.resolution);
+    try {
+      o.cameras.SetResolution(width, height);
+    } catch (const std::invalid_argument& error) {
+      throw std::invalid_argument(std::string("--resolution: ") + error.what());
+    }
   }
   if (const auto texture = vision::ParseTopTexture(args.texture)) {
     o.top_texture = *texture;
@@ -131,6 +139,9 @@ void AddRenderCommand(CLI::App& app) {
   cmd->add_option("--brightness", args->brightness,
                   "LOW,HIGH: per-scene illumination gain drawn uniformly from the seed (default "
                   "1,1)");
+  cmd->add_option("--resolution", args->resolution,
+                  "WxH: both cameras' image size (px; e.g. 1280x1024, 2048x1536, 2448x2048), "
+                  "their focal lengths scaled with the width (default 640x480)");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
   cmd->callback([args] { RunRender(*args); });
 }

@@ -199,6 +199,11 @@ TEST_F(SetupCli, UnwritableOutputsAreRefusedBeforeWork) {
                        Path("missing/cal.yml")),
                 2, "--out");
   ExpectRefused(RunCli("render --seed 1 --out " + Path("input_file.txt")), 2, "is a file");
+  ExpectRefused(RunCli("render --seed 1 --resolution 1280*1024 --out " + Path("r")), 2,
+                "--resolution must be WIDTHxHEIGHT");
+  ExpectRefused(RunCli("render --seed 1 --resolution 20x20 --out " + Path("r")), 2,
+                "--resolution: the image size must be 64-8192 px");
+  EXPECT_FALSE(fs::exists(Path("r")));
 }
 
 TEST_F(SetupCli, ADeviceThatDoesNotExistIsAnError) {

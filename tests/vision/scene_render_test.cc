@@ -92,6 +92,37 @@ TEST(SceneRender, PartsAppearWhereTheTrueCamerasProjectThem) {
   EXPECT_GT(std::abs(scene.cameras.C1.z() - scene.cameras.C2.z()), 1.0);
 }
 
+// A camera-sized sensor sees the same cell: the parts project to the same place in the image
+// relative to its width, so the pixels scale with it.
+TEST(SceneRender, ACameraSizedRenderScalesTheIntrinsicsWithTheWidth) {
+  SceneRenderOptions small;
+  small.seed = kSeed;
+  small.num_objects = 3;
+  small.supersampling = 1;
+  SceneRenderOptions large = small;
+  large.cameras.SetResolution(1280, 1024);
+  EXPECT_DOUBLE_EQ(large.cameras.focal_px, 2.0 * small.cameras.focal_px);
+  const RenderedScene scene = RenderScene(large);
+  EXPECT_EQ(scene.left.cols, 1280);
+  EXPECT_EQ(scene.left.rows, 1024);
+  EXPECT_EQ(scene.cameras.image_width, 1280);
+  const calib::StereoCalibration reference = PickCellCameras(small.cameras);
+  for (const SceneObject& object : scene.objects) {
+    const Eigen::Vector3d top(object.centre_mm.x(), object.centre_mm.y(), object.height_mm());
+    for (const auto& [P_large, P_small] : {std::pair{scene.cameras.P1, reference.P1},
+                                           std::pair{scene.cameras.P2, reference.P2}}) {
+      // The pixel centres at (0, 0) in both: x' + 0.5 = 2 (x + 0.5); y' shifts by the taller sensor.
+      const Eigen::Vector2d at_large = Project(P_large, top), at_small = Project(P_small, top);
+      EXPECT_NEAR(at_large.x() + 0.5, 2.0 * (at_small.x() + 0.5), 1e-6);
+      EXPECT_NEAR(at_large.y() - 0.5 * 1023, 2.0 * (at_small.y() - 0.5 * 479), 1e-6);
+    }
+  }
+  PickCellCameraOptions tiny;
+  EXPECT_THROW(tiny.SetResolution(32, 24), std::invalid_argument);
+  EXPECT_THROW(ParseResolution("--resolution", "1280*1024"), std::invalid_argument);
+  EXPECT_EQ(ParseResolution("--resolution", "2448x2048"), std::make_pair(2448, 2048));
+}
+
 TEST(SceneRender, DirectoryRoundTripsAndTheTargetCalibrates) {
   SceneRenderOptions options;
   options.seed = kSeed;

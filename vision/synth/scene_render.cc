@@ -398,6 +398,29 @@ std::string PickCellCameraOptions::Check() const {
   return out.str();
 }
 
+void PickCellCameraOptions::SetResolution(int width, int height) {
+  if (width < 64 || height < 64 || width > 8192 || height > 8192) {
+    throw std::invalid_argument("the image size must be 64-8192 px each way (is " +
+                                std::to_string(width) + "x" + std::to_string(height) + ")");
+  }
+  const double scale = static_cast<double>(width) / image_width;
+  focal_px *= scale;
+  right_principal_offset_px *= scale;
+  image_width = width;
+  image_height = height;
+}
+
+std::pair<int, int> ParseResolution(const std::string& option, const std::string& text) {
+  int width = 0, height = 0;
+  char x = 0;
+  std::istringstream in(text);
+  if (!(in >> width >> x >> height) || (x != 'x' && x != 'X') || !(in >> std::ws).eof()) {
+    throw std::invalid_argument(option + " must be WIDTHxHEIGHT in pixels, e.g. 1280x1024 (got '" +
+                                text + "')");
+  }
+  return {width, height};
+}
+
 std::string SceneRenderOptions::Check() const {
   std::ostringstream out;
   if (const std::string camera_problem = cameras.Check(); !camera_problem.empty()) {
@@ -448,7 +471,7 @@ calib::StereoCalibration PickCellCameras(const PickCellCameraOptions& options) {
   cameras.P1 = calib::LookAtCamera(options.focal_px, principal, options.left_centre_mm,
                                    options.work_centre_mm + Eigen::Vector3d(0, 8, 0),
                                    Eigen::Vector3d::UnitY());
-  cameras.P2 = calib::LookAtCamera(options.focal_px * 1.01, principal + Eigen::Vector2d(4, -3),
+  cameras.P2 = calib::LookAtCamera(options.focal_px * 1.01, principal + options.right_principal_offset_px,
                                    options.right_centre_mm,
                                    options.work_centre_mm + Eigen::Vector3d(3, -6, 0),
                                    Eigen::Vector3d::UnitY());

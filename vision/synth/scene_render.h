@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <string_view>
 #include <vector>
 
@@ -48,11 +49,20 @@ struct PickCellCameraOptions {
   int image_width = 640;                                     ///< px
   int image_height = 480;                                    ///< px
   double focal_px = 1100.0;                                  ///< left camera focal length (px)
+  /// The right camera's principal point less the image centre (px): its sensor sits off-axis.
+  Eigen::Vector2d right_principal_offset_px{4.0, -3.0};
   Eigen::Vector3d left_centre_mm{86.4, 479.7, 719.9};        ///< thesis C1
   Eigen::Vector3d right_centre_mm{81.1, 291.5, 711.9};       ///< thesis C2
   Eigen::Vector3d work_centre_mm{100.0, 385.0, 0.0};         ///< where both cameras look
   std::string Check() const;
+  /// The same cameras on sensors of `width` x `height` px: the focal length and the principal
+  /// offset scale with the width (the same horizontal field of view; a sensor of another aspect
+  /// sees more or less along y). Throws std::invalid_argument outside 64-8192 px.
+  void SetResolution(int width, int height);
 };
+
+/// "WxH" (e.g. 1280x1024) -> (W, H); throws std::invalid_argument naming `option`.
+std::pair<int, int> ParseResolution(const std::string& option, const std::string& text);
 
 /// How the top faces are drawn.
 enum class TopTexture {
