@@ -34,9 +34,8 @@ struct CellPageOptions {
   /// At most this many PNG answers a second over all clients (the rest wait their turn): bounds
   /// the page's total work - encoding, copying, the kernel's sends - however many clients poll
   /// as fast as they can. The image changes once a cycle, so 10 viewers refreshing every second
-  /// fit. 10, not 20: once the cycle fell to 84-88 ms (seed 100), 18 images a second to 50
-  /// polling clients cost the loop 10-13 % of its cycle time on two cores even at nice 19
-  /// (1.04-1.07 at 10; docs/robot.md). 0 = no limit.
+  /// fit; web_cell_page_load_test holds the cell loop within 1.10x of its cycle time alone with
+  /// 50 clients polling (docs/robot.md). 0 = no limit.
   double max_images_per_second = 10.0;
   /// Empty when usable; otherwise a one-line reason (bad port, non-loopback host without token).
   std::string Check() const;
