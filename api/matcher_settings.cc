@@ -147,59 +147,74 @@ std::size_t ParseMemoryBudget(const std::string& name, const std::string& value)
   return static_cast<std::size_t>(megabytes * static_cast<double>(hnn::kBytesPerMegabyte));
 }
 
-using NamedSetter = std::function<void(const std::string& name, const std::string& value,
-                                       MatcherSettings& s)>;
+using NamedSetter =
+    std::function<void(const std::string& name, const std::string& value, MatcherSettings& s)>;
 
 // The settings applied after the preset, over it: names of enums (the library's Parse*
 // functions), the preset's refinements and data-term details, and the run's resources. A name
 // not given keeps the base's value (or the preset's, ApplyPreset).
 const std::map<std::string, NamedSetter>& NamedOptions() {
   static const std::map<std::string, NamedSetter> options = {
-      {"features", [](auto& n, auto& v, auto& s) {
+      {"features",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.features.detector = Named(n, v, vision::ParseFeatureDetector(v), "");
        }},
-      {"engine", [](auto& n, auto& v, auto& s) {
+      {"engine",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.engine = Named(n, v, vision::ParseEngine(v), "opencl, cpu or thesis");
        }},
-      {"objective", [](auto& n, auto& v, auto& s) {
+      {"objective",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.energy.objective = Named(n, v, hnn::ParseObjective(v), "");
        }},
-      {"init", [](auto& n, auto& v, auto& s) {
+      {"init",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.dynamics.initial_state = Named(n, v, hnn::ParseInitialState(v), "");
        }},
-      {"activation", [](auto& n, auto& v, auto& s) {
+      {"activation",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.dynamics.activation = Named(n, v, hnn::ParseActivation(v), "");
        }},
-      {"stop", [](auto& n, auto& v, auto& s) {
+      {"stop",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.dynamics.stop_rule = Named(n, v, hnn::ParseStopRule(v), "energy or decisions");
        }},
-      {"weights", [](auto& n, auto& v, auto& s) {
+      {"weights",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.opencl.storage =
              Named(n, v, hnn::ParseWeightStorage(v), hnn::WeightStorageNames());
        }},
-      {"decode", [](auto& n, auto& v, auto& s) {
+      {"decode",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.decode.method = Named(n, v, hnn::ParseDecodeMethod(v), "");
        }},
-      {"network", [](auto& n, auto& v, auto& s) {
+      {"network",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.candidates.kind = Named(n, v, hnn::ParseNetworkKind(v), "feature or disparity");
        }},
-      {"data-term", [](auto& n, auto& v, auto& s) {
+      {"data-term",
+       [](auto& n, auto& v, auto& s) {
          s.matcher.data_term.kind = Named(n, v, vision::ParseDataTermKind(v), "census or zncc");
          s.matcher.confidence = vision::ConfidenceOptionsFor(s.matcher.data_term);  // fitted for it
        }},
-      {"census-window", [](auto& n, auto& v, auto& s) { s.matcher.data_term.census_window = ParseInt(n, v); }},
+      {"census-window",
+       [](auto& n, auto& v, auto& s) { s.matcher.data_term.census_window = ParseInt(n, v); }},
       {"aggregation-window",
        [](auto& n, auto& v, auto& s) { s.matcher.data_term.aggregation_window = ParseInt(n, v); }},
-      {"support-gamma", [](auto& n, auto& v, auto& s) { s.matcher.data_term.support_gamma = ParseDouble(n, v); }},
-      {"zncc-peaks", [](auto& n, auto& v, auto& s) { s.matcher.candidates.zncc_peaks = ParseFlag(n, v); }},
+      {"support-gamma",
+       [](auto& n, auto& v, auto& s) { s.matcher.data_term.support_gamma = ParseDouble(n, v); }},
+      {"zncc-peaks",
+       [](auto& n, auto& v, auto& s) { s.matcher.candidates.zncc_peaks = ParseFlag(n, v); }},
       {"subpixel-peaks",
        [](auto& n, auto& v, auto& s) { s.matcher.candidates.subpixel_peaks = ParseFlag(n, v); }},
       {"zrange", [](auto&, auto& v, auto& s) { s.matcher.candidates.z_range_mm = ParseZRange(v); }},
       {"memory-budget-mb",
        [](auto& n, auto& v, auto& s) { s.matcher.memory_budget_bytes = ParseMemoryBudget(n, v); }},
       {"device", [](auto&, auto& v, auto& s) { s.device = v; }},
-      {"lr-check", [](auto& n, auto& v, auto& s) { s.refinement.left_right_check = ParseFlag(n, v); }},
-      {"no-lr-check", [](auto& n, auto& v, auto& s) {
+      {"lr-check",
+       [](auto& n, auto& v, auto& s) { s.refinement.left_right_check = ParseFlag(n, v); }},
+      {"no-lr-check",
+       [](auto& n, auto& v, auto& s) {
          if (ParseFlag(n, v)) s.refinement.left_right_check = false;
        }},
       {"lr-tolerance",
@@ -207,7 +222,8 @@ const std::map<std::string, NamedSetter>& NamedOptions() {
       {"subpixel", [](auto& n, auto& v, auto& s) { s.refinement.subpixel = ParseFlag(n, v); }},
       {"subpixel-min-offset",
        [](auto& n, auto& v, auto& s) { s.refinement.subpixel_min_offset_px = ParseDouble(n, v); }},
-      {"epipolar-snap", [](auto& n, auto& v, auto& s) { s.refinement.epipolar_snap = ParseFlag(n, v); }},
+      {"epipolar-snap",
+       [](auto& n, auto& v, auto& s) { s.refinement.epipolar_snap = ParseFlag(n, v); }},
       {"epipolar-subpixel",
        [](auto& n, auto& v, auto& s) { s.refinement.epipolar_subpixel = ParseFlag(n, v); }},
   };
@@ -250,7 +266,9 @@ void ApplyPreset(const vision::MatcherPreset& chosen, MatcherSettings& settings)
   if (!given("top-k")) o.candidates.top_k = preset_candidates.top_k;
   o.data_term = chosen.matcher.data_term;
   o.confidence = chosen.matcher.confidence;
-  if (!given("support-radius")) o.energy.support_radius_px = chosen.matcher.energy.support_radius_px;
+  if (!given("support-radius")) {
+    o.energy.support_radius_px = chosen.matcher.energy.support_radius_px;
+  }
   // The stop rule and the check interval (hnn-default: decisions, every 2 steps, twice in a
   // row; docs/engine.md).
   o.dynamics.stop_rule = chosen.matcher.dynamics.stop_rule;
@@ -264,7 +282,9 @@ vision::MatcherPreset PresetNamed(const std::string& preset) {
   const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
   if (!chosen) {
     std::string names;
-    for (const vision::MatcherPreset& p : vision::AllPresets()) names += (names.empty() ? "" : ", ") + p.name;
+    for (const vision::MatcherPreset& p : vision::AllPresets()) {
+      names += (names.empty() ? "" : ", ") + p.name;
+    }
     throw std::invalid_argument("unknown preset '" + preset + "' (" + names + ")");
   }
   return *chosen;

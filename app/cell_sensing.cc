@@ -85,7 +85,8 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
 
 void CellSensingFlags::Resolve() {
   // The library's pick-cell resolution, as the facade's SensePositions does.
-  flags.settings = api::ResolvePickCellSettings(flags.GivenOverrides(), vision::PickCellMatcherOptions());
+  flags.settings =
+      api::ResolvePickCellSettings(flags.GivenOverrides(), vision::PickCellMatcherOptions());
   flags.options = flags.settings.matcher;
   flags.refinement = flags.settings.refinement;
   flags.device = flags.settings.device;

@@ -139,8 +139,9 @@ vision::MatcherPreset MatcherFlags::ShownPreset() const {
   // The defaults shown are the ones that run: the library's resolution of no flag at all, over
   // the base options (tests/app/docs_defaults_test.cc checks them against REPORT.json).
   // Calibrated cells (pick, serve) run hnn-default's feature-network fallback.
-  const api::MatcherSettings shown = unrectified_cell ? api::ResolvePickCellSettings({}, options)
-                                                      : api::ResolveMatcherSettings(preset, {}, options);
+  const api::MatcherSettings shown = unrectified_cell
+                                         ? api::ResolvePickCellSettings({}, options)
+                                         : api::ResolveMatcherSettings(preset, {}, options);
   return {shown.preset, shown.matcher, shown.refinement};
 }
 
@@ -182,13 +183,13 @@ void MatcherFlags::AddGatingFlags(CLI::App* cmd) {
   AddText(cmd, "features", vision::FeatureDetectorName(o.features.detector),
           "Feature detector on both images: canny, susan-edge, susan-corner, moravec, sobel");
   AddNumber(cmd, "--max-features", o.features.max_features,
-         "Cap on features per image, kept spread over the image (0 = no cap)");
+            "Cap on features per image, kept spread over the image (0 = no cap)");
   AddNumber(cmd, "--canny-low", o.features.canny_low, "Canny low threshold");
   AddNumber(cmd, "--canny-high", o.features.canny_high, "Canny high threshold");
   AddNumber(cmd, "--min-disparity", o.candidates.min_disparity,
-         "Rectified pairs: smallest disparity x_left - x_right (px)");
+            "Rectified pairs: smallest disparity x_left - x_right (px)");
   AddNumber(cmd, "--max-disparity", o.candidates.max_disparity,
-         "Rectified pairs: largest disparity x_left - x_right (px)");
+            "Rectified pairs: largest disparity x_left - x_right (px)");
   std::string zrange;
   if (o.candidates.z_range_mm) {
     zrange = FormatDefault(o.candidates.z_range_mm->first) + "," +
@@ -198,35 +199,36 @@ void MatcherFlags::AddGatingFlags(CLI::App* cmd) {
           "Calibrated pairs: ZMIN,ZMAX (mm) - a candidate whose triangulated point falls outside "
           "is not a neuron");
   AddNumber(cmd, "--max-epipolar", o.candidates.max_epipolar_distance_px,
-         "Largest distance (px) of a candidate from its epipolar line");
+            "Largest distance (px) of a candidate from its epipolar line");
   AddNumber(cmd, "--top-k", o.candidates.top_k,
-         "Keep the K best-correlated candidates per left feature (0 = all; default: the "
-         "preset's)");
+            "Keep the K best-correlated candidates per left feature (0 = all; default: the "
+            "preset's)");
   AddNumber(cmd, "--min-correlation", o.candidates.min_correlation,
-         "Drop candidates whose similarity is below this (-1 keeps all)");
-  AddOnOff(cmd, "dense", o.candidates.dense,
-         "The thesis's all-pairs network: every left x right pair is a neuron and every neuron is "
-         "connected to every other (O((N_L N_R)^2) memory)");
+            "Drop candidates whose similarity is below this (-1 keeps all)");
+  AddOnOff(
+      cmd, "dense", o.candidates.dense,
+      "The thesis's all-pairs network: every left x right pair is a neuron and every neuron is "
+      "connected to every other (O((N_L N_R)^2) memory)");
   AddText(cmd, "network", hnn::NetworkKindName(o.candidates.kind),
           "feature (rows = left features, columns = right features) or disparity (columns = "
           "disparity levels at the similarity peaks of the row; rectified pairs). Default: the "
           "preset's; hnn-default falls back to feature on calibrated, unrectified pairs");
   AddOnOff(cmd, "zncc-peaks", o.candidates.zncc_peaks,
-         "Disparity network: candidates only at the similarity peaks along the row (the "
-         "preset's)");
+           "Disparity network: candidates only at the similarity peaks along the row (the "
+           "preset's)");
   AddOnOff(cmd, "subpixel-peaks", o.candidates.subpixel_peaks,
-         "Disparity network: parabola sub-pixel candidate disparities (the preset's)");
+           "Disparity network: parabola sub-pixel candidate disparities (the preset's)");
   AddText(cmd, "data-term", vision::DataTermKindName(o.data_term.kind),
           "The similarity of windows: census (census transform, Hamming costs summed over "
           "--aggregation-window with adaptive support weights; hnn-default on rectified pairs) "
           "or zncc (thesis eq. 6.9 over --zncc-window; the feature network's). Default: the "
           "preset's");
   AddNumber(cmd, "--census-window", o.data_term.census_window,
-         "Census data term: census transform side, 3 or 5");
+            "Census data term: census transform side, 3 or 5");
   AddNumber(cmd, "--aggregation-window", o.data_term.aggregation_window,
-         "Census data term: side of the square the Hamming costs are summed over, odd 1..31");
+            "Census data term: side of the square the Hamming costs are summed over, odd 1..31");
   AddNumber(cmd, "--support-gamma", o.data_term.support_gamma,
-         "Census data term: adaptive support weight exp(-|dI| / gamma), grey levels; 0 = box");
+            "Census data term: adaptive support weight exp(-|dI| / gamma), grey levels; 0 = box");
   AddNumber(cmd, "--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)");
 }
 
@@ -242,27 +244,28 @@ void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
           "Compatibility (default: the preset's; hnn-thesis: thesis): thesis (eq. 6.6-6.8), "
           "printed0, printed1, printed2, geometry-similarity");
   AddOnOff(cmd, "lr-check", refinement_shown_.left_right_check,
-         "The preset's left-right consistency check: keep a match only when the search back from "
-         "its right point lands on its left point");
+           "The preset's left-right consistency check: keep a match only when the search back from "
+           "its right point lands on its left point");
   // Pick cells refine with their own options (PositionSensingOptions::refinement: --subpixel).
   if (!unrectified_cell) AddRefinementFlags(cmd);
   AddNumber(cmd, "--support-radius", bound_.energy.support_radius_px,
-         "Sparse networks: connect neurons whose left features are within this many px "
-         "(default: the preset's)");
+            "Sparse networks: connect neurons whose left features are within this many px "
+            "(default: the preset's)");
 }
 
 void MatcherFlags::AddRefinementFlags(CLI::App* cmd) {
   vision::RefinementOptions& r = refinement_shown_;
   AddNumber(cmd, "--lr-tolerance", r.left_right_tolerance_px,
-         "Left-right check: largest distance (px) of the point found back from the left point");
-  AddOnOff(cmd, "subpixel", r.subpixel, "Rectified pairs: parabola sub-pixel fit of the similarity");
+            "Left-right check: largest distance (px) of the point found back from the left point");
+  AddOnOff(cmd, "subpixel", r.subpixel,
+           "Rectified pairs: parabola sub-pixel fit of the similarity");
   AddNumber(cmd, "--subpixel-min-offset", r.subpixel_min_offset_px,
-         "The sub-pixel fit leaves a match whose vertex lies closer than this (px) to its whole "
-         "pixel");
+            "The sub-pixel fit leaves a match whose vertex lies closer than this (px) to its whole "
+            "pixel");
   AddOnOff(cmd, "epipolar-snap", r.epipolar_snap,
-         "Unrectified pairs: move right points onto the left point's epipolar line");
+           "Unrectified pairs: move right points onto the left point's epipolar line");
   AddOnOff(cmd, "epipolar-subpixel", r.epipolar_subpixel,
-         "Unrectified pairs: parabola sub-pixel fit along the epipolar line");
+           "Unrectified pairs: parabola sub-pixel fit along the epipolar line");
 }
 
 void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
@@ -272,7 +275,7 @@ void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
   AddNumber(cmd, "--C", o.energy.C, "Energy weight of column uniqueness");
   AddNumber(cmd, "--D", o.energy.D, "Energy weight of the epipolar distance");
   AddNumber(cmd, "--T", o.energy.T,
-         "Disparity-gradient scale of the compatibility, g = 2 exp(-DG / T) - 1 (eq. 6.8)");
+            "Disparity-gradient scale of the compatibility, g = 2 exp(-DG / T) - 1 (eq. 6.8)");
   AddNumber(cmd, "--lambda", o.energy.lambda, "eq. 6.6 slope");
   AddNumber(cmd, "--theta", o.energy.theta, "eq. 6.6 centre");
   AddOnOff(cmd, "distance-attenuation", o.energy.distance_attenuation,
@@ -288,10 +291,11 @@ void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
           "rule) or decisions (every row's winner settled); the default shown is what this "
           "command runs");
   AddNumber(cmd, "--check-interval", o.dynamics.energy_interval,
-         "Steps between convergence checks (energy and decisions); the default shown is what "
-         "this command runs");
+            "Steps between convergence checks (energy and decisions); the default shown is what "
+            "this command runs");
   AddNumber(cmd, "--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines");
-  AddNumber(cmd, "--max-updates", o.dynamics.max_updates, "Update limit of the thesis engine (thesis: 20000)");
+  AddNumber(cmd, "--max-updates", o.dynamics.max_updates,
+            "Update limit of the thesis engine (thesis: 20000)");
 }
 
 void MatcherFlags::AddDecodingFlags(CLI::App* cmd) {
@@ -302,13 +306,13 @@ void MatcherFlags::AddDecodingFlags(CLI::App* cmd) {
           "opencl engine weight storage: " + hnn::WeightStorageNames() +
               " (auto: half row blocks when rows are short, else csr; docs/engine.md)");
   AddNumber(cmd, "--min-confidence", o.min_confidence,
-         "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least this: "
-         "fewer, surer matches");
+            "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least this: "
+            "fewer, surer matches");
   AddNumber(cmd, "--threshold", o.decode.threshold, "Minimum activation of an accepted match");
-  memory_budget_mb_ = static_cast<double>(o.memory_budget_bytes) /
-                      static_cast<double>(hnn::kBytesPerMegabyte);
+  memory_budget_mb_ =
+      static_cast<double>(o.memory_budget_bytes) / static_cast<double>(hnn::kBytesPerMegabyte);
   AddNumber(cmd, "--memory-budget-mb", memory_budget_mb_,
-         "Refuse networks that need more memory than this (MB)");
+            "Refuse networks that need more memory than this (MB)");
 }
 
 api::Overrides MatcherFlags::GivenOverrides() const {

@@ -91,8 +91,8 @@ struct MatcherFlags {
   /// The preset whose values --help shows as defaults (the one that runs by default).
   vision::MatcherPreset ShownPreset() const;
   vision::MatcherOptions bound_;  ///< CLI11's targets for the numeric flags (type checks, help)
-  std::map<std::string, std::string> texts_;  ///< CLI11's targets for the string flags
-  std::map<std::string, bool> switches_;      ///< CLI11's targets for the boolean flags
+  std::map<std::string, std::string> texts_;    ///< CLI11's targets for the string flags
+  std::map<std::string, bool> switches_;        ///< CLI11's targets for the boolean flags
   vision::RefinementOptions refinement_shown_;  ///< the shown preset's; targets of its numbers
   double memory_budget_mb_ = 0.0;
   std::vector<CLI::Option*> added_;  ///< every matcher flag, named as the resolver names it

@@ -43,7 +43,8 @@ void RunDemo(const DemoArgs& args) {
   vision::PositionSensingOptions sensing;
   // pick's settings, through the library's resolver (--engine its only matcher flag here).
   sensing.matcher =
-      api::ResolvePickCellSettings({{"engine", args.engine}}, vision::PickCellMatcherOptions()).matcher;
+      api::ResolvePickCellSettings({{"engine", args.engine}}, vision::PickCellMatcherOptions())
+          .matcher;
 
   // The output folder and the device are checked before the work.
   CheckOutputFolderWritable("--out", args.out);

@@ -169,7 +169,8 @@ void AddEvalCommand(CLI::App& app) {
                   "change the first preset; --engine, --device and --memory-budget-mb apply to "
                   "every preset")
       ->capture_default_str();
-  AddSwitch(cmd, "baselines", &args->baselines, "WTA ZNCC, StereoBM and StereoSGBM at the same pixels");
+  AddSwitch(cmd, "baselines", &args->baselines,
+            "WTA ZNCC, StereoBM and StereoSGBM at the same pixels");
   AddSwitch(cmd, "warped", &args->warped,
             "Also evaluate the unrectified version: right image warped by a known H, calibration "
             "P2 = H P2, scored after mapping back with H");

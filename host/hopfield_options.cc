@@ -127,7 +127,9 @@ std::optional<Activation> ParseActivation(std::string_view name) {
   return ValueIn(kActivationNames, name);
 }
 
-std::string_view StopRuleName(DynamicsOptions::StopRule rule) { return NameIn(kStopRuleNames, rule); }
+std::string_view StopRuleName(DynamicsOptions::StopRule rule) {
+  return NameIn(kStopRuleNames, rule);
+}
 
 std::optional<DynamicsOptions::StopRule> ParseStopRule(std::string_view name) {
   return ValueIn(kStopRuleNames, name);

@@ -20,37 +20,37 @@ class SettingsCli : public hnnstereo::testing::CliTest {};
 void ExpectHelpHas(const std::string& command, std::initializer_list<const char*> lines) {
   const CliResult result = RunCli(command + " --help");
   ASSERT_EQ(result.exit_code, 0) << result.output;
-  for (const char* line : lines) EXPECT_NE(result.output.find(line), std::string::npos) << command << ": " << line;
+  for (const char* line : lines)
+    EXPECT_NE(result.output.find(line), std::string::npos) << command << ": " << line;
   // CLI11's "--x,--no-x{false}" reads as "off" whatever the default: never shown.
   EXPECT_EQ(result.output.find("{false}"), std::string::npos) << command;
   EXPECT_EQ(result.output.find("{true}"), std::string::npos) << command;
 }
 
 TEST_F(SettingsCli, PickShowsEveryBooleanPairWithTheDefaultThatRuns) {
-  ExpectHelpHas("pick", {"--subpixel,--no-subpixel (default: on)",
-                         "--lr-check,--no-lr-check (default: on)",
-                         "--image-edges,--no-image-edges (default: on)",
-                         "--dense,--no-dense (default: off)", "--stop TEXT=decisions",
-                         "--network TEXT=feature", "--zrange TEXT=-5,200",
-                         "--memory-budget-mb FLOAT=2048"});
+  ExpectHelpHas(
+      "pick", {"--subpixel,--no-subpixel (default: on)", "--lr-check,--no-lr-check (default: on)",
+               "--image-edges,--no-image-edges (default: on)", "--dense,--no-dense (default: off)",
+               "--stop TEXT=decisions", "--network TEXT=feature", "--zrange TEXT=-5,200",
+               "--memory-budget-mb FLOAT=2048"});
 }
 
 TEST_F(SettingsCli, MatchShowsTheLibraryDefaults) {
-  ExpectHelpHas("match", {"--lr-check,--no-lr-check (default: on)",
-                          "--subpixel,--no-subpixel (default: on)", "--network TEXT=disparity",
-                          "--data-term TEXT=census", "--stop TEXT=decisions",
-                          "--check-interval INT=2", "--top-k INT=3", "--T FLOAT=1.5",
-                          "--memory-budget-mb FLOAT=2048", "--features TEXT=canny",
-                          "--engine TEXT=opencl", "--activation TEXT=continuous"});
+  ExpectHelpHas(
+      "match",
+      {"--lr-check,--no-lr-check (default: on)", "--subpixel,--no-subpixel (default: on)",
+       "--network TEXT=disparity", "--data-term TEXT=census", "--stop TEXT=decisions",
+       "--check-interval INT=2", "--top-k INT=3", "--T FLOAT=1.5", "--memory-budget-mb FLOAT=2048",
+       "--features TEXT=canny", "--engine TEXT=opencl", "--activation TEXT=continuous"});
 }
 
 TEST_F(SettingsCli, EvalNamesTheMatcherFlagsAsMatchDoes) {
-  ExpectHelpHas("eval", {"--lr-check,--no-lr-check (default: on)",
-                         "--subpixel,--no-subpixel (default: on)",
-                         "--epipolar-subpixel,--no-epipolar-subpixel (default: on)",
-                         "--subpixel-peaks,--no-subpixel-peaks (default: off)",
-                         "--subpixel-min-offset FLOAT=0.1", "--aggregation-window INT=13",
-                         "--T FLOAT=1.5", "--memory-budget-mb FLOAT=6144"});
+  ExpectHelpHas(
+      "eval",
+      {"--lr-check,--no-lr-check (default: on)", "--subpixel,--no-subpixel (default: on)",
+       "--epipolar-subpixel,--no-epipolar-subpixel (default: on)",
+       "--subpixel-peaks,--no-subpixel-peaks (default: off)", "--subpixel-min-offset FLOAT=0.1",
+       "--aggregation-window INT=13", "--T FLOAT=1.5", "--memory-budget-mb FLOAT=6144"});
   const CliResult result = RunCli("eval --help");
   EXPECT_EQ(result.output.find("0/1"), std::string::npos) << result.output;
 }

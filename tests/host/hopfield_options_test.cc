@@ -25,7 +25,8 @@ void ExpectRoundTrip(std::initializer_list<Enum> values, NameFn name, ParseFn pa
 }
 
 TEST(HopfieldOptionNames, ActivationNamesRoundTrip) {
-  ExpectRoundTrip({Activation::kContinuous, Activation::kDiscrete}, ActivationName, ParseActivation);
+  ExpectRoundTrip({Activation::kContinuous, Activation::kDiscrete}, ActivationName,
+                  ParseActivation);
   EXPECT_EQ(ActivationName(Activation::kContinuous), "continuous");
 }
 

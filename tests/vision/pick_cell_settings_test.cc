@@ -30,7 +30,8 @@ TEST(PickCellSettings, ObjectiveAndDynamicsAreThoseOfTheDefaultPreset) {
 }
 
 TEST(PickCellSettings, DataTermNamesRoundTrip) {
-  for (DataTermOptions::Kind kind : {DataTermOptions::Kind::kZncc, DataTermOptions::Kind::kCensus}) {
+  for (DataTermOptions::Kind kind :
+       {DataTermOptions::Kind::kZncc, DataTermOptions::Kind::kCensus}) {
     ASSERT_TRUE(ParseDataTermKind(DataTermKindName(kind)).has_value());
     EXPECT_EQ(*ParseDataTermKind(DataTermKindName(kind)), kind);
   }
