@@ -92,11 +92,12 @@ std::vector<std::string> ExpandConfigArguments(
     }
     if (origins) (*origins)[option] = where;
     std::string value = Trim(trimmed.substr(colon + 1));
-    if (given(option)) continue;
+    const std::string negated = "--no-" + key;  // a --x/--no-x pair's off switch
+    if (given(option) || given(negated)) continue;
     if (value == "true" || value == "yes" || value == "on") {
       from_file.push_back(option);
     } else if (value == "false" || value == "no" || value == "off") {
-      continue;
+      if (known_option && known_option(negated)) from_file.push_back(negated);
     } else {
       if (!value.empty() && value.front() == '[' && value.back() == ']') {
         value = value.substr(1, value.size() - 2);

@@ -21,12 +21,13 @@
 namespace hnnstereo::app {
 
 /// Expands `--config FILE.yml` (flat YAML: "long-option-name: value" per line, '#' comments,
-/// `true`/`false` for flags, lists as [a, b]) into command-line arguments placed after the
-/// subcommand; options given on the command line win. Returns `arguments` unchanged when there is
-/// no --config. `known_option` (optional) says whether the subcommand has an option "--key": an
-/// unknown key is refused naming the file, the line and the key. `origins` (optional) receives,
-/// per option taken from the file, "config file 'F' line N, key 'K'" for later messages.
-/// Throws std::invalid_argument on an unreadable or malformed file or an unknown key.
+/// `true`/`false` for flags - `x: false` gives a pair's `--no-x` - lists as [a, b]) into
+/// command-line arguments placed after the subcommand; options given on the command line win.
+/// Returns `arguments` unchanged when there is no --config. `known_option` (optional) says whether
+/// the subcommand has an option "--key": an unknown key is refused naming the file, the line and
+/// the key. `origins` (optional) receives, per option taken from the file, "config file 'F' line N,
+/// key 'K'" for later messages. Throws std::invalid_argument on an unreadable or malformed file or
+/// an unknown key.
 std::vector<std::string> ExpandConfigArguments(
     const std::vector<std::string>& arguments,
     const std::function<bool(const std::string&)>& known_option = {},

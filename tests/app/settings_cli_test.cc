@@ -6,6 +6,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 
 #include "cli_runner.h"
 
@@ -67,6 +68,21 @@ TEST_F(SettingsCli, MatchResolvesTheEnergyScaleAndTheRefinementPair) {
   EXPECT_DOUBLE_EQ(report["energy_options"]["T"].get<double>(), 2.0);
   EXPECT_EQ(report["left_right_check"], false);
   EXPECT_EQ(report["dynamics_options"]["stop_rule"], "decisions");
+}
+
+// `lr-check: false` in a --config file is the pair's --no-lr-check; the command line still wins.
+TEST_F(SettingsCli, ConfigFalseTurnsAPairOff) {
+  std::ofstream(Path("input_config.yml")) << "lr-check: false\n";
+  const std::string match = "match --left " + kTeddy + "/im2.png --right " + kTeddy +
+                            "/im6.png --rectified --max-features 300 --engine cpu --out " +
+                            Path("m.csv") + " --config " + Path("input_config.yml");
+  for (const auto& [extra, expected] :
+       {std::pair<std::string, bool>{"", false}, {" --lr-check", true}}) {
+    const CliResult result = RunCli(match + " --report " + Path("r.json") + extra);
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ifstream file(Path("r.json"));
+    EXPECT_EQ(nlohmann::json::parse(file)["left_right_check"], expected) << extra;
+  }
 }
 
 }  // namespace
