@@ -129,11 +129,9 @@ std::string SwitchFormatter::make_option_name(const CLI::Option* option, bool is
   return name;
 }
 
-CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help,
-                       std::optional<bool> shown_default) {
-  const bool shown = shown_default.value_or(*value);
+CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help) {
   return cmd->add_flag("--" + name + ",!--no-" + name, *value, help)
-      ->option_text(shown ? "(default: on)" : "(default: off)");
+      ->option_text(*value ? "(default: on)" : "(default: off)");
 }
 
 vision::MatcherPreset MatcherFlags::ShownPreset() const {

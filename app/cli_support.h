@@ -6,7 +6,6 @@
 #include <functional>
 #include <map>
 #include <memory>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -41,10 +40,9 @@ class SwitchFormatter : public CLI::Formatter {
   std::string make_option_name(const CLI::Option* option, bool is_positional) const override;
 };
 
-/// Adds the boolean pair `--name` / `--no-name` bound to `value`, its help showing the default
-/// that runs ("(default: on)"), `shown_default` when given (a preset's value), else `*value`.
-CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help,
-                       std::optional<bool> shown_default = std::nullopt);
+/// Adds the boolean pair `--name` / `--no-name` bound to `value`, its help showing `*value` (the
+/// default that runs) as "(default: on)" or "(default: off)".
+CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help);
 
 /// Matcher options as command-line flags (features, gating, energy, dynamics, decoding,
 /// refinements), named as api::ResolveMatcherSettings names them: the flags given become its
