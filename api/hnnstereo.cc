@@ -174,11 +174,9 @@ SensingResult SensePositions(const cv::Mat& left, const cv::Mat& right, const Ca
   if (auto problem = cal.ImageSizeProblem(left_grey.cols, left_grey.rows); !problem.empty()) {
     throw std::invalid_argument("the calibration " + problem);
   }
-  // `hnnstereo pick`'s defaults (app/cell_sensing.cc): the pick-cell matcher, the preset,
-  // then the feature network (pick cells are calibrated, unrectified).
-  api::MatcherSettings settings =
-      api::ResolveMatcherSettings("hnn-default", overrides, vision::PickCellMatcherOptions());
-  api::UseFeatureNetworkUnlessRectified(false, &settings);
+  // `hnnstereo pick`'s settings (app/cell_sensing.cc): the same library resolution.
+  const api::MatcherSettings settings =
+      api::ResolvePickCellSettings(overrides, vision::PickCellMatcherOptions());
   vision::PositionSensingOptions options;
   options.matcher = settings.matcher;
   if (auto problem = options.Check(); !problem.empty()) throw std::invalid_argument(problem);

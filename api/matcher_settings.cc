@@ -92,6 +92,9 @@ const std::map<std::string, Setter>& DirectOptions() {
       {"theta", [](auto& n, auto& v, auto& o) { o.energy.theta = ParseDouble(n, v); }},
       {"distance-attenuation",
        [](auto& n, auto& v, auto& o) { o.energy.distance_attenuation = ParseFlag(n, v); }},
+      {"T", [](auto& n, auto& v, auto& o) { o.energy.T = ParseDouble(n, v); }},
+      {"min-correlation",
+       [](auto& n, auto& v, auto& o) { o.candidates.min_correlation = ParseDouble(n, v); }},
       {"alpha", [](auto& n, auto& v, auto& o) { o.dynamics.alpha = ParseDouble(n, v); }},
       {"seed",
        [](auto& n, auto& v, auto& o) {
@@ -110,15 +113,121 @@ const std::map<std::string, Setter>& DirectOptions() {
   return options;
 }
 
-// The CLI's string-valued flags with their defaults (parsed after the preset, as Resolve does).
-const std::map<std::string, std::string>& StringOptionDefaults() {
-  static const std::map<std::string, std::string> defaults = {
-      {"features", "canny"},        {"engine", "opencl"}, {"objective", ""},        {"init", "off"},
-      {"activation", "continuous"}, {"decode", "thesis"}, {"network", ""},          {"zrange", ""},
-      {"memory-budget-mb", "2048"}, {"device", ""},       {"no-lr-check", "false"}, {"stop", ""},
-      {"weights", "auto"},          {"data-term", ""},
+// An enum's value by its library name (Parse*), or std::invalid_argument naming the option, the
+// value and the choices.
+template <class Enum>
+Enum Named(const std::string& option, const std::string& value, std::optional<Enum> parsed,
+           const std::string& choices) {
+  if (!parsed) {
+    throw std::invalid_argument("unknown " + option + " '" + value + "'" +
+                                (choices.empty() ? "" : " (" + choices + ")"));
+  }
+  return *parsed;
+}
+
+// --zrange ZMIN,ZMAX (mm).
+std::pair<double, double> ParseZRange(const std::string& zrange) {
+  double zmin = 0, zmax = 0;
+  char comma = 0;
+  std::istringstream in(zrange);
+  if (!(in >> zmin >> comma >> zmax) || comma != ',' || !(zmin < zmax)) {
+    throw std::invalid_argument("zrange must be ZMIN,ZMAX with ZMIN < ZMAX (got '" + zrange + "')");
+  }
+  return {zmin, zmax};
+}
+
+// MB as the user gives it -> bytes. Bounded above so that the conversion is defined (inf or
+// 1e300 would not fit a size_t: undefined behaviour, seen as a budget of 0 MB).
+std::size_t ParseMemoryBudget(const std::string& name, const std::string& value) {
+  const double megabytes = ParseDouble(name, value);
+  if (!(megabytes > 0) || !(megabytes <= kMaxMemoryBudgetMb)) {
+    throw std::invalid_argument("memory-budget-mb must be a number in (0, 1099511627776] (is " +
+                                value + ")");
+  }
+  return static_cast<std::size_t>(megabytes * static_cast<double>(hnn::kBytesPerMegabyte));
+}
+
+using NamedSetter =
+    std::function<void(const std::string& name, const std::string& value, MatcherSettings& s)>;
+
+// The settings applied after the preset, over it: names of enums (the library's Parse*
+// functions), the preset's refinements and data-term details, and the run's resources. A name
+// not given keeps the base's value (or the preset's, ApplyPreset).
+const std::map<std::string, NamedSetter>& NamedOptions() {
+  static const std::map<std::string, NamedSetter> options = {
+      {"features",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.features.detector = Named(n, v, vision::ParseFeatureDetector(v), "");
+       }},
+      {"engine",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.engine = Named(n, v, vision::ParseEngine(v), "opencl, cpu or thesis");
+       }},
+      {"objective",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.energy.objective = Named(n, v, hnn::ParseObjective(v), "");
+       }},
+      {"init",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.dynamics.initial_state = Named(n, v, hnn::ParseInitialState(v), "");
+       }},
+      {"activation",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.dynamics.activation = Named(n, v, hnn::ParseActivation(v), "");
+       }},
+      {"stop",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.dynamics.stop_rule = Named(n, v, hnn::ParseStopRule(v), "energy or decisions");
+       }},
+      {"weights",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.opencl.storage =
+             Named(n, v, hnn::ParseWeightStorage(v), hnn::WeightStorageNames());
+       }},
+      {"decode",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.decode.method = Named(n, v, hnn::ParseDecodeMethod(v), "");
+       }},
+      {"network",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.candidates.kind = Named(n, v, hnn::ParseNetworkKind(v), "feature or disparity");
+       }},
+      {"data-term",
+       [](auto& n, auto& v, auto& s) {
+         s.matcher.data_term.kind = Named(n, v, vision::ParseDataTermKind(v), "census or zncc");
+         s.matcher.confidence = vision::ConfidenceOptionsFor(s.matcher.data_term);  // fitted for it
+       }},
+      {"census-window",
+       [](auto& n, auto& v, auto& s) { s.matcher.data_term.census_window = ParseInt(n, v); }},
+      {"aggregation-window",
+       [](auto& n, auto& v, auto& s) { s.matcher.data_term.aggregation_window = ParseInt(n, v); }},
+      {"support-gamma",
+       [](auto& n, auto& v, auto& s) { s.matcher.data_term.support_gamma = ParseDouble(n, v); }},
+      {"zncc-peaks",
+       [](auto& n, auto& v, auto& s) { s.matcher.candidates.zncc_peaks = ParseFlag(n, v); }},
+      {"subpixel-peaks",
+       [](auto& n, auto& v, auto& s) { s.matcher.candidates.subpixel_peaks = ParseFlag(n, v); }},
+      {"zrange", [](auto&, auto& v, auto& s) { s.matcher.candidates.z_range_mm = ParseZRange(v); }},
+      {"memory-budget-mb",
+       [](auto& n, auto& v, auto& s) { s.matcher.memory_budget_bytes = ParseMemoryBudget(n, v); }},
+      {"device", [](auto&, auto& v, auto& s) { s.device = v; }},
+      {"lr-check",
+       [](auto& n, auto& v, auto& s) { s.refinement.left_right_check = ParseFlag(n, v); }},
+      {"no-lr-check",
+       [](auto& n, auto& v, auto& s) {
+         if (ParseFlag(n, v)) s.refinement.left_right_check = false;
+       }},
+      {"lr-tolerance",
+       [](auto& n, auto& v, auto& s) { s.refinement.left_right_tolerance_px = ParseDouble(n, v); }},
+      {"subpixel", [](auto& n, auto& v, auto& s) { s.refinement.subpixel = ParseFlag(n, v); }},
+      {"subpixel-min-offset",
+       [](auto& n, auto& v, auto& s) { s.refinement.subpixel_min_offset_px = ParseDouble(n, v); }},
+      {"epipolar-snap",
+       [](auto& n, auto& v, auto& s) { s.refinement.epipolar_snap = ParseFlag(n, v); }},
+      {"epipolar-subpixel",
+       [](auto& n, auto& v, auto& s) { s.refinement.epipolar_subpixel = ParseFlag(n, v); }},
   };
-  return defaults;
+  return options;
 }
 
 // "max_features" (Python keyword) and "--max-features" (command line) mean "max-features".
@@ -135,128 +244,53 @@ std::string CanonicalName(std::string name) {
 std::vector<std::string> OverrideNames() {
   std::vector<std::string> names;
   for (const auto& [name, setter] : DirectOptions()) names.push_back(name);
-  for (const auto& [name, value] : StringOptionDefaults()) names.push_back(name);
+  for (const auto& [name, setter] : NamedOptions()) names.push_back(name);
   return names;
 }
 
-// The preset's settings, except those given in `settings.given` (the objective, network,
-// top-k, data term, support radius) and its refinements (unless no-lr-check).
-void ApplyPreset(const std::string& preset, std::map<std::string, std::string>& strings,
-                 MatcherSettings& settings) {
+namespace {
+
+// The preset's compatibility, network, gating, data term, dynamics and refinements over the base,
+// except what `settings.given` names (the overrides, applied after).
+void ApplyPreset(const vision::MatcherPreset& chosen, MatcherSettings& settings) {
   vision::MatcherOptions& o = settings.matcher;
   const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
-
-  // The preset, unless overridden, then the string-valued settings.
-  const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
-  if (!chosen) {
-    std::string names;
-    for (const vision::MatcherPreset& p : vision::AllPresets()) names += (names.empty() ? "" : ", ") + p.name;
-    throw std::invalid_argument("unknown preset '" + preset + "' (" + names + ")");
-  }
-  if (!given("objective")) strings["objective"] = std::string(hnn::ObjectiveName(chosen->matcher.energy.objective));
-  settings.refinement = chosen->refinement;
-  if (ParseFlag("no-lr-check", strings["no-lr-check"])) settings.refinement.left_right_check = false;
-  const vision::CandidateOptions& preset_candidates = chosen->matcher.candidates;
+  settings.refinement = chosen.refinement;
+  o.energy.objective = chosen.matcher.energy.objective;
+  const vision::CandidateOptions& preset_candidates = chosen.matcher.candidates;
   if (!given("network")) {
-    strings["network"] =
-        preset_candidates.kind == hnn::NetworkKind::kFeatureVsDisparity ? "disparity" : "feature";
+    o.candidates.kind = preset_candidates.kind;
     o.candidates.zncc_peaks = preset_candidates.zncc_peaks;
     o.candidates.subpixel_peaks = preset_candidates.subpixel_peaks;
   }
   if (!given("top-k")) o.candidates.top_k = preset_candidates.top_k;
-  o.data_term = chosen->matcher.data_term;
-  o.confidence = chosen->matcher.confidence;
-  if (given("data-term")) {
-    if (strings["data-term"] == "census") {
-      o.data_term.kind = vision::DataTermOptions::Kind::kCensus;
-    } else if (strings["data-term"] == "zncc") {
-      o.data_term.kind = vision::DataTermOptions::Kind::kZncc;
-    } else {
-      throw std::invalid_argument("unknown data-term '" + strings["data-term"] +
-                                  "' (census or zncc)");
-    }
-    o.confidence = vision::ConfidenceOptionsFor(o.data_term);  // the model fitted for it
+  o.data_term = chosen.matcher.data_term;
+  o.confidence = chosen.matcher.confidence;
+  if (!given("support-radius")) {
+    o.energy.support_radius_px = chosen.matcher.energy.support_radius_px;
   }
-  if (!given("support-radius")) o.energy.support_radius_px = chosen->matcher.energy.support_radius_px;
-
-}
-
-// The string-valued settings (features, engine, objective, init, activation, stop rule, weight
-// storage, decoding, network) parsed into `o`; an unknown name is refused naming the choices.
-void ParseNamedSettings(std::map<std::string, std::string>& strings, MatcherSettings& settings,
-                        const vision::MatcherPreset& chosen) {
-  vision::MatcherOptions& o = settings.matcher;
-  const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
-  if (auto d = vision::ParseFeatureDetector(strings["features"])) {
-    o.features.detector = *d;
-  } else {
-    throw std::invalid_argument("unknown features '" + strings["features"] + "'");
-  }
-  if (auto e = vision::ParseEngine(strings["engine"])) {
-    o.engine = *e;
-  } else {
-    throw std::invalid_argument("unknown engine '" + strings["engine"] + "' (opencl, cpu or thesis)");
-  }
-  if (auto obj = hnn::ParseObjective(strings["objective"])) {
-    o.energy.objective = *obj;
-  } else {
-    throw std::invalid_argument("unknown objective '" + strings["objective"] + "'");
-  }
-  if (auto s = hnn::ParseInitialState(strings["init"])) {
-    o.dynamics.initial_state = *s;
-  } else {
-    throw std::invalid_argument("unknown init '" + strings["init"] + "'");
-  }
-  if (strings["activation"] == "continuous") {
-    o.dynamics.activation = hnn::Activation::kContinuous;
-  } else if (strings["activation"] == "discrete") {
-    o.dynamics.activation = hnn::Activation::kDiscrete;
-  } else {
-    throw std::invalid_argument("unknown activation '" + strings["activation"] + "'");
-  }
-  // The stop rule and the check interval are the preset's unless given (hnn-default: decisions,
-  // every 2 steps, twice in a row; docs/engine.md).
-  if (!given("stop")) {
-    o.dynamics.stop_rule = chosen.matcher.dynamics.stop_rule;
-  } else if (strings["stop"] == "energy") {
-    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kEnergy;
-  } else if (strings["stop"] == "decisions") {
-    o.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
-  } else {
-    throw std::invalid_argument("unknown stop '" + strings["stop"] + "' (energy or decisions)");
-  }
+  // The stop rule and the check interval (hnn-default: decisions, every 2 steps, twice in a
+  // row; docs/engine.md).
+  o.dynamics.stop_rule = chosen.matcher.dynamics.stop_rule;
   if (!given("check-interval")) {
     o.dynamics.energy_interval = chosen.matcher.dynamics.energy_interval;
     o.dynamics.stable_checks = chosen.matcher.dynamics.stable_checks;
   }
-  if (auto w = hnn::ParseWeightStorage(strings["weights"])) {
-    o.opencl.storage = *w;
-  } else {
-    throw std::invalid_argument("unknown weights '" + strings["weights"] + "' (" +
-                                hnn::WeightStorageNames() + ")");
-  }
-  if (auto m = hnn::ParseDecodeMethod(strings["decode"])) {
-    o.decode.method = *m;
-  } else {
-    throw std::invalid_argument("unknown decode '" + strings["decode"] + "'");
-  }
-  if (strings["network"] == "feature") {
-    o.candidates.kind = hnn::NetworkKind::kFeatureVsFeature;
-  } else if (strings["network"] == "disparity") {
-    o.candidates.kind = hnn::NetworkKind::kFeatureVsDisparity;
-  } else {
-    throw std::invalid_argument("unknown network '" + strings["network"] + "' (feature or disparity)");
-  }
-  if (const std::string& zrange = strings["zrange"]; !zrange.empty()) {
-    double zmin = 0, zmax = 0;
-    char comma = 0;
-    std::istringstream in(zrange);
-    if (!(in >> zmin >> comma >> zmax) || comma != ',' || !(zmin < zmax)) {
-      throw std::invalid_argument("zrange must be ZMIN,ZMAX with ZMIN < ZMAX (got '" + zrange + "')");
-    }
-    o.candidates.z_range_mm = std::make_pair(zmin, zmax);
-  }
 }
+
+vision::MatcherPreset PresetNamed(const std::string& preset) {
+  const std::optional<vision::MatcherPreset> chosen = vision::FindPreset(preset);
+  if (!chosen) {
+    std::string names;
+    for (const vision::MatcherPreset& p : vision::AllPresets()) {
+      names += (names.empty() ? "" : ", ") + p.name;
+    }
+    throw std::invalid_argument("unknown preset '" + preset + "' (" + names + ")");
+  }
+  return *chosen;
+}
+
+}  // namespace
 
 MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
                                        const vision::MatcherOptions& base) {
@@ -264,15 +298,12 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
   settings.preset = preset;
   settings.matcher = base;
   vision::MatcherOptions& o = settings.matcher;
-  std::map<std::string, std::string> strings = StringOptionDefaults();
   for (const auto& [raw_name, value] : overrides) {
     const std::string name = CanonicalName(raw_name);
     settings.given[name] = value;
     if (auto direct = DirectOptions().find(name); direct != DirectOptions().end()) {
       direct->second(name, value, o);
-    } else if (strings.count(name) > 0) {
-      strings[name] = value;
-    } else {
+    } else if (NamedOptions().count(name) == 0) {
       throw std::invalid_argument("unknown option " + Quoted(raw_name) +
                                   " (the match command's flags without dashes, e.g. max-features)");
     }
@@ -282,21 +313,19 @@ MatcherSettings ResolveMatcherSettings(const std::string& preset, const Override
     throw std::invalid_argument("--max-steps must be >= 1 (0 steps leave every neuron where it "
                                 "started: no match)");
   }
-  ApplyPreset(preset, strings, settings);
-  ParseNamedSettings(strings, settings, *vision::FindPreset(preset));
-  const double memory_budget_mb = ParseDouble("memory-budget-mb", strings["memory-budget-mb"]);
-  // Bounded above so that the conversion to bytes is defined (inf or 1e300 would not fit a
-  // size_t: undefined behaviour, seen as a budget of 0 MB). 2^40 MB is beyond any machine.
-  if (!(memory_budget_mb > 0) || !(memory_budget_mb <= kMaxMemoryBudgetMb)) {
-    throw std::invalid_argument("memory-budget-mb must be a number in (0, 1099511627776] (is " +
-                                strings["memory-budget-mb"] + ")");
+  ApplyPreset(PresetNamed(preset), settings);
+  for (const auto& [name, value] : settings.given) {
+    if (auto named = NamedOptions().find(name); named != NamedOptions().end()) {
+      named->second(name, value, settings);
+    }
   }
-  o.memory_budget_bytes = static_cast<std::size_t>(memory_budget_mb * 1024.0 * 1024.0);
-  settings.device = strings["device"];
   // The geometry (rectified or not) is settled by the call; check the rest now.
   vision::MatcherOptions rest = o;
   rest.candidates.rectified = true;
   if (auto error = rest.Check(); !error.empty()) {
+    throw std::invalid_argument(InOptionNames(error, MatcherOptionNameTable()));
+  }
+  if (auto error = settings.refinement.Check(); !error.empty()) {
     throw std::invalid_argument(InOptionNames(error, MatcherOptionNameTable()));
   }
   return settings;
@@ -321,6 +350,24 @@ void UseFeatureNetworkUnlessRectified(bool rectified, MatcherSettings* settings)
       o.energy.support_radius_px = fallback->matcher.energy.support_radius_px;
     }
   }
+}
+
+MatcherSettings ResolvePickCellSettings(const Overrides& overrides,
+                                        const vision::MatcherOptions& base) {
+  MatcherSettings settings = ResolveMatcherSettings("hnn-default", overrides, base);
+  UseFeatureNetworkUnlessRectified(false, &settings);
+  // What the preset set and the user did not give is the pick cell's own
+  // (tests/app/pick_library_defaults_test.cc).
+  const auto given = [&](const char* name) { return settings.given.count(name) > 0; };
+  vision::MatcherOptions& o = settings.matcher;
+  if (!given("stop")) o.dynamics.stop_rule = base.dynamics.stop_rule;
+  if (!given("check-interval")) {
+    o.dynamics.energy_interval = base.dynamics.energy_interval;
+    o.dynamics.stable_checks = base.dynamics.stable_checks;
+  }
+  if (!given("top-k")) o.candidates.top_k = base.candidates.top_k;
+  if (!given("support-radius")) o.energy.support_radius_px = base.energy.support_radius_px;
+  return settings;
 }
 
 std::string InOptionNames(std::string message, const OptionNameTable& table) {
@@ -356,6 +403,12 @@ const OptionNameTable& MatcherOptionNameTable() {
       {"zncc_window", "--zncc-window"},
       {"min_confidence", "--min-confidence"},
       {"max_features", "--max-features"},
+      {"left_right_tolerance_px", "--lr-tolerance"},
+      {"subpixel_min_offset_px", "--subpixel-min-offset"},
+      {"data_term.census_window", "--census-window"},
+      {"data_term.aggregation_window", "--aggregation-window"},
+      {"data_term.support_gamma", "--support-gamma"},
+      {"min_correlation", "--min-correlation"},
   };
   return table;
 }

@@ -29,11 +29,18 @@ struct MatcherSettings {
 /// The names ResolveMatcherSettings accepts (the CLI's matcher flags without the dashes).
 std::vector<std::string> OverrideNames();
 
-/// `base` (MatcherOptions{} for `match`, PickCellMatcherOptions() for `pick`), then the preset's
-/// compatibility, network, gating and refinements unless overridden, then the overrides. Throws
-/// std::invalid_argument naming an unknown preset or option, or a bad value.
+/// `base` (MatcherOptions{} for `match`; eval: the preset's own), then the preset's
+/// compatibility, network, gating, data term, dynamics and refinements unless overridden, then
+/// the overrides; a setting neither sets keeps the base's value. Throws std::invalid_argument
+/// naming an unknown preset or option, or a bad value.
 MatcherSettings ResolveMatcherSettings(const std::string& preset, const Overrides& overrides,
                                        const vision::MatcherOptions& base);
+
+/// The settings of a calibrated pick cell, for `pick`, `serve` and the facade's SensePositions:
+/// preset hnn-default over `base` (PickCellMatcherOptions()), its feature-network fallback
+/// (the cell is unrectified), then the base's top-K, support radius and dynamics unless given.
+MatcherSettings ResolvePickCellSettings(const Overrides& overrides,
+                                        const vision::MatcherOptions& base);
 
 /// The feature-vs-disparity network needs rectified rows: on a calibrated, unrectified pair fall
 /// back to the feature-vs-feature network of preset hnn-geometry-lr (unless "network" was given).

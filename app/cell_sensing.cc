@@ -9,16 +9,7 @@
 
 namespace hnnstereo::app {
 
-CellSensingFlags::CellSensingFlags() {
-  flags.options = vision::PickCellMatcherOptions();
-  flags.zrange = "-5,200";
-  flags.options.candidates.z_range_mm.reset();  // set from --zrange by Resolve
-  // The help shows the library's dynamics, which Resolve keeps (not hnn-default's).
-  flags.stop_rule =
-      flags.options.dynamics.stop_rule == hnn::DynamicsOptions::StopRule::kDecisions ? "decisions"
-                                                                                     : "energy";
-  flags.check_interval = flags.options.dynamics.energy_interval;
-}
+CellSensingFlags::CellSensingFlags() { flags.options = vision::PickCellMatcherOptions(); }
 
 void CellSensingFlags::AddTo(CLI::App* cmd) {
   cmd->add_option("--clustering", clustering,
@@ -74,21 +65,17 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "Flag parts whose top face reaches within this many pixels of either image's "
                   "border: part of it may be out of view (\"at_image_border\": true; 0 flags none)")
       ->capture_default_str();
-  cmd->add_flag("--image-edges,!--no-image-edges", sensing.extend_tops_to_image_edges,
-                "Fit box tops to the left image's edges: a side of a top the matches left "
-                "short, or stretched past the face, moves to the face's edge seen in the image "
-                "(default on; \"image_edge_moved_mm\" in the output says how far)")
-      ->capture_default_str();
-  cmd->add_flag("--flag-unplaced,!--no-flag-unplaced", sensing.flag_unplaced_sides,
-                "Flag a box whose top keeps a side with no edge under it in the left image that "
-                "the image-edge fit could not place (default on; \"unplaced_sides\" in the "
-                "output)")
-      ->capture_default_str();
-  cmd->add_flag("--subpixel,!--no-subpixel", sensing.refinement.epipolar_subpixel,
-                "Before triangulating, move each match's right point along its epipolar line to "
-                "the sub-pixel peak of ZNCC (it is snapped onto the line either way; default on: "
-                "heights about 2.5x tighter)")
-      ->capture_default_str();
+  AddSwitch(cmd, "image-edges", &sensing.extend_tops_to_image_edges,
+            "Fit box tops to the left image's edges: a side of a top the matches left short, or "
+            "stretched past the face, moves to the face's edge seen in the image "
+            "(\"image_edge_moved_mm\" in the output says how far)");
+  AddSwitch(cmd, "flag-unplaced", &sensing.flag_unplaced_sides,
+            "Flag a box whose top keeps a side with no edge under it in the left image that the "
+            "image-edge fit could not place (\"unplaced_sides\" in the output)");
+  AddSwitch(cmd, "subpixel", &sensing.refinement.epipolar_subpixel,
+            "Before triangulating, move each match's right point along its epipolar line to the "
+            "sub-pixel peak of ZNCC (it is snapped onto the line either way; heights about 2.5x "
+            "tighter)");
   cmd->add_option("--leader-threshold", sensing.leader.threshold_mm,
                   "Thesis clustering: join/merge distance of heights (mm)")
       ->capture_default_str();
@@ -97,24 +84,12 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
 }
 
 void CellSensingFlags::Resolve() {
-  flags.Resolve();
-  flags.UseFeatureNetworkUnlessRectified(false);  // pick cells are calibrated, unrectified
-  // One source of truth: what the preset set and the user did not give is the library's
-  // PositionSensingOptions default, which the stress acceptance measures (hnn-default's
-  // decisions stop rule used to replace its energy rule here;
-  // tests/app/pick_library_defaults_test.cc).
-  const vision::MatcherOptions library = vision::PickCellMatcherOptions();
-  const auto given = [&](const char* name) { return flags.settings.given.count(name) > 0; };
-  hnn::DynamicsOptions& dynamics = flags.options.dynamics;
-  if (!given("stop")) dynamics.stop_rule = library.dynamics.stop_rule;
-  if (!given("check-interval")) {
-    dynamics.energy_interval = library.dynamics.energy_interval;
-    dynamics.stable_checks = library.dynamics.stable_checks;
-  }
-  if (!given("top-k")) flags.options.candidates.top_k = library.candidates.top_k;
-  if (!given("support-radius")) {
-    flags.options.energy.support_radius_px = library.energy.support_radius_px;
-  }
+  // The library's pick-cell resolution, as the facade's SensePositions does.
+  flags.settings =
+      api::ResolvePickCellSettings(flags.GivenOverrides(), vision::PickCellMatcherOptions());
+  flags.options = flags.settings.matcher;
+  flags.refinement = flags.settings.refinement;
+  flags.device = flags.settings.device;
   sensing.matcher = flags.options;
   if (auto method = vision::ParseClusteringMethod(clustering)) {
     sensing.clustering = *method;

@@ -21,7 +21,7 @@ struct CellSensingFlags {
   std::string yaw = "rectangle";
   vision::PositionSensingOptions sensing;
   MatcherFlags flags;
-  CellSensingFlags();  ///< the pick-cell matcher defaults, --zrange -5,200
+  CellSensingFlags();  ///< the pick-cell matcher (PickCellMatcherOptions) as the flags' base
   void AddTo(CLI::App* cmd);
   /// Parses the string flags into `sensing`; throws std::invalid_argument with a one-line reason.
   void Resolve();

@@ -92,11 +92,12 @@ std::vector<std::string> ExpandConfigArguments(
     }
     if (origins) (*origins)[option] = where;
     std::string value = Trim(trimmed.substr(colon + 1));
-    if (given(option)) continue;
+    const std::string negated = "--no-" + key;  // a --x/--no-x pair's off switch
+    if (given(option) || given(negated)) continue;
     if (value == "true" || value == "yes" || value == "on") {
       from_file.push_back(option);
     } else if (value == "false" || value == "no" || value == "off") {
-      continue;
+      if (known_option && known_option(negated)) from_file.push_back(negated);
     } else {
       if (!value.empty() && value.front() == '[' && value.back() == ']') {
         value = value.substr(1, value.size() - 2);
@@ -118,184 +119,222 @@ std::vector<std::string> ExpandConfigArguments(
   return expanded;
 }
 
-vision::MatcherPreset MatcherFlags::ShownPreset() const {
-  // The defaults shown are the ones that run: those of the default preset (hnn-default), which
-  // --preset replaces (tests/app/docs_defaults_test.cc checks them against REPORT.json).
-  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback, hnn-geometry-lr.
-  return unrectified_cell ? vision::FindPreset("hnn-geometry-lr").value()
-                          : vision::AccurateDefaultPreset();
+std::string SwitchFormatter::make_option_name(const CLI::Option* option, bool is_positional) const {
+  std::string name = CLI::Formatter::make_option_name(option, is_positional);
+  for (const char* flag_value : {"{false}", "{true}"}) {
+    for (auto at = name.find(flag_value); at != std::string::npos; at = name.find(flag_value)) {
+      name.erase(at, std::string(flag_value).size());
+    }
+  }
+  return name;
 }
 
-void MatcherFlags::AddTo(CLI::App* cmd) {
-  auto& o = options;
-  cmd->add_option("--features", features,
-                  "Feature detector on both images: canny (default), susan-edge, susan-corner, "
-                  "moravec, sobel")
-      ->capture_default_str();
-  cmd->add_option("--max-features", o.features.max_features,
-                  "Cap on features per image, kept spread over the image (0 = no cap)")
-      ->capture_default_str();
-  cmd->add_option("--canny-low", o.features.canny_low, "Canny low threshold")->capture_default_str();
-  cmd->add_option("--canny-high", o.features.canny_high, "Canny high threshold")->capture_default_str();
-  cmd->add_option("--min-disparity", o.candidates.min_disparity,
-                  "Rectified pairs: smallest disparity x_left - x_right (px)")
-      ->capture_default_str();
-  cmd->add_option("--max-disparity", o.candidates.max_disparity,
-                  "Rectified pairs: largest disparity x_left - x_right (px)")
-      ->capture_default_str();
-  cmd->add_option("--zrange", zrange,
-                  "Calibrated pairs: ZMIN,ZMAX (mm) - a candidate whose triangulated point falls "
-                  "outside is not a neuron");
-  cmd->add_option("--max-epipolar", o.candidates.max_epipolar_distance_px,
-                  "Largest distance (px) of a candidate from its epipolar line")
-      ->capture_default_str();
+CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help) {
+  return cmd->add_flag("--" + name + ",!--no-" + name, *value, help)
+      ->option_text(*value ? "(default: on)" : "(default: off)");
+}
+
+vision::MatcherPreset MatcherFlags::ShownPreset() const {
+  // The defaults shown are the ones that run: the library's resolution of no flag at all, over
+  // the base options (tests/app/docs_defaults_test.cc checks them against REPORT.json).
+  // Calibrated cells (pick, serve) run hnn-default's feature-network fallback.
+  const api::MatcherSettings shown = unrectified_cell
+                                         ? api::ResolvePickCellSettings({}, options)
+                                         : api::ResolveMatcherSettings(preset, {}, options);
+  return {shown.preset, shown.matcher, shown.refinement};
+}
+
+CLI::Option* MatcherFlags::AddText(CLI::App* cmd, const std::string& name, std::string_view shown,
+                                   const std::string& help) {
+  texts_[name] = std::string(shown);
+  CLI::Option* option = cmd->add_option("--" + name, texts_[name], help);
+  if (!shown.empty()) option->default_str(std::string(shown));
+  added_.push_back(option);
+  return option;
+}
+
+void MatcherFlags::AddOnOff(CLI::App* cmd, const std::string& name, bool shown,
+                            const std::string& help) {
+  switches_[name] = shown;
+  added_.push_back(AddSwitch(cmd, name, &switches_[name], help));
+}
+
+void MatcherFlags::AddTo(CLI::App* cmd, bool with_preset) {
+  if (with_preset) {
+    cmd->add_option("--preset", preset,
+                    "Named settings: hnn-default (geometry x similarity compatibility, the census "
+                    "data term on rectified pairs and a left-right check; measured best, "
+                    "docs/accuracy.md) or hnn-thesis (the thesis's eq. 6.7 additive "
+                    "compatibility, ZNCC, no check)")
+        ->capture_default_str();
+  }
   const vision::MatcherPreset shown = ShownPreset();
-  top_k_option = cmd->add_option("--top-k", o.candidates.top_k,
-                                 "Keep the K best-correlated candidates per left feature (0 = all; "
-                                 "default: the preset's)")
-                     ->default_str(std::to_string(shown.matcher.candidates.top_k));
-  cmd->add_flag("--dense", o.candidates.dense,
-                "The thesis's all-pairs network: every left x right pair is a neuron and every "
-                "neuron is connected to every other (O((N_L N_R)^2) memory)");
-  network_option = cmd->add_option(
-      "--network", network,
-      "feature (rows = left features, columns = right features) or disparity (columns = "
-      "disparity levels at the ZNCC peaks of the row; rectified pairs). Default: the preset's; "
-      "hnn-default falls back to feature on calibrated, unrectified pairs")
-      ->default_str(shown.matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
-                        ? "disparity"
-                        : "feature");
-  data_term_option =
-      cmd->add_option("--data-term", data_term,
-                      "The similarity of windows: census (5 x 5 census, Hamming costs summed over "
-                      "13 x 13 with adaptive support weights; hnn-default on rectified pairs) or "
-                      "zncc (thesis eq. 6.9 over --zncc-window; the feature network's). Default: "
-                      "the preset's")
-          ->default_str(shown.matcher.data_term.kind == vision::DataTermOptions::Kind::kCensus
-                            ? "census"
-                            : "zncc");
-  cmd->add_option("--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)")
-      ->capture_default_str();
+  bound_ = shown.matcher;
+  refinement_shown_ = shown.refinement;
+  AddGatingFlags(cmd);
   AddEngineFlags(cmd);
+  AddEnergyFlags(cmd);
+  AddDecodingFlags(cmd);
+}
+
+void MatcherFlags::AddGatingFlags(CLI::App* cmd) {
+  auto& o = bound_;
+  AddText(cmd, "features", vision::FeatureDetectorName(o.features.detector),
+          "Feature detector on both images: canny, susan-edge, susan-corner, moravec, sobel");
+  AddNumber(cmd, "--max-features", o.features.max_features,
+            "Cap on features per image, kept spread over the image (0 = no cap)");
+  AddNumber(cmd, "--canny-low", o.features.canny_low, "Canny low threshold");
+  AddNumber(cmd, "--canny-high", o.features.canny_high, "Canny high threshold");
+  AddNumber(cmd, "--min-disparity", o.candidates.min_disparity,
+            "Rectified pairs: smallest disparity x_left - x_right (px)");
+  AddNumber(cmd, "--max-disparity", o.candidates.max_disparity,
+            "Rectified pairs: largest disparity x_left - x_right (px)");
+  std::string zrange;
+  if (o.candidates.z_range_mm) {
+    zrange = FormatDefault(o.candidates.z_range_mm->first) + "," +
+             FormatDefault(o.candidates.z_range_mm->second);
+  }
+  AddText(cmd, "zrange", zrange,
+          "Calibrated pairs: ZMIN,ZMAX (mm) - a candidate whose triangulated point falls outside "
+          "is not a neuron");
+  AddNumber(cmd, "--max-epipolar", o.candidates.max_epipolar_distance_px,
+            "Largest distance (px) of a candidate from its epipolar line");
+  AddNumber(cmd, "--top-k", o.candidates.top_k,
+            "Keep the K best-correlated candidates per left feature (0 = all; default: the "
+            "preset's)");
+  AddNumber(cmd, "--min-correlation", o.candidates.min_correlation,
+            "Drop candidates whose similarity is below this (-1 keeps all)");
+  AddOnOff(
+      cmd, "dense", o.candidates.dense,
+      "The thesis's all-pairs network: every left x right pair is a neuron and every neuron is "
+      "connected to every other (O((N_L N_R)^2) memory)");
+  AddText(cmd, "network", hnn::NetworkKindName(o.candidates.kind),
+          "feature (rows = left features, columns = right features) or disparity (columns = "
+          "disparity levels at the similarity peaks of the row; rectified pairs). Default: the "
+          "preset's; hnn-default falls back to feature on calibrated, unrectified pairs");
+  AddOnOff(cmd, "zncc-peaks", o.candidates.zncc_peaks,
+           "Disparity network: candidates only at the similarity peaks along the row (the "
+           "preset's)");
+  AddOnOff(cmd, "subpixel-peaks", o.candidates.subpixel_peaks,
+           "Disparity network: parabola sub-pixel candidate disparities (the preset's)");
+  AddText(cmd, "data-term", vision::DataTermKindName(o.data_term.kind),
+          "The similarity of windows: census (census transform, Hamming costs summed over "
+          "--aggregation-window with adaptive support weights; hnn-default on rectified pairs) "
+          "or zncc (thesis eq. 6.9 over --zncc-window; the feature network's). Default: the "
+          "preset's");
+  AddNumber(cmd, "--census-window", o.data_term.census_window,
+            "Census data term: census transform side, 3 or 5");
+  AddNumber(cmd, "--aggregation-window", o.data_term.aggregation_window,
+            "Census data term: side of the square the Hamming costs are summed over, odd 1..31");
+  AddNumber(cmd, "--support-gamma", o.data_term.support_gamma,
+            "Census data term: adaptive support weight exp(-|dI| / gamma), grey levels; 0 = box");
+  AddNumber(cmd, "--zncc-window", o.zncc_window, "ZNCC window side (odd; thesis 7 or 5)");
 }
 
 void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
-  auto& o = options;
-  const vision::MatcherPreset shown = ShownPreset();
-  cmd->add_option("--engine", engine,
-                  "opencl (default; falls back to cpu with a notice when no OpenCL device "
-                  "exists), cpu (C++ reference of the parallel dynamics) or thesis (serial "
-                  "asynchronous updates on dense weights)")
-      ->capture_default_str();
-  cmd->add_option("--device", device,
-                  "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the "
-                  "first GPU, else the first device)");
-  cmd->add_option("--preset", preset,
-                  "Named settings: hnn-default (geometry x similarity compatibility, the census "
-                  "data term on rectified pairs and a left-right check; measured best, "
-                  "docs/accuracy.md) or hnn-thesis (the thesis's eq. 6.7 additive compatibility, "
-                  "ZNCC, no check)")
-      ->capture_default_str();
-  objective_option =
-      cmd->add_option("--objective", objective,
-                      "Compatibility (overrides the preset's: hnn-default geometry-similarity, "
-                      "hnn-thesis thesis): thesis (eq. 6.6-6.8), printed0, printed1, printed2, "
-                      "geometry-similarity")
-          ->default_str(std::string(hnn::ObjectiveName(shown.matcher.energy.objective)));
-  cmd->add_flag("--no-lr-check,!--lr-check", no_left_right_check,
-                "--no-lr-check skips the preset's left-right consistency check; --lr-check keeps "
-                "it (the presets' default)");
-  support_radius_option = cmd->add_option(
-      "--support-radius", o.energy.support_radius_px,
-      "Sparse networks: connect neurons whose left features are within this many px (default: "
-      "the preset's)")
-      ->default_str(FormatDefault(shown.matcher.energy.support_radius_px));
-  AddEnergyFlags(cmd);
+  AddText(cmd, "engine", vision::EngineName(bound_.engine),
+          "opencl (falls back to cpu with a notice when no OpenCL device exists), cpu (C++ "
+          "reference of the parallel dynamics) or thesis (serial asynchronous updates on dense "
+          "weights)");
+  AddText(cmd, "device", "",
+          "OpenCL device: index or name substring (else HNNSTEREO_OPENCL_DEVICE, else the first "
+          "GPU, else the first device)");
+  AddText(cmd, "objective", hnn::ObjectiveName(bound_.energy.objective),
+          "Compatibility (default: the preset's; hnn-thesis: thesis): thesis (eq. 6.6-6.8), "
+          "printed0, printed1, printed2, geometry-similarity");
+  AddOnOff(cmd, "lr-check", refinement_shown_.left_right_check,
+           "The preset's left-right consistency check: keep a match only when the search back from "
+           "its right point lands on its left point");
+  // Pick cells refine with their own options (PositionSensingOptions::refinement: --subpixel).
+  if (!unrectified_cell) AddRefinementFlags(cmd);
+  AddNumber(cmd, "--support-radius", bound_.energy.support_radius_px,
+            "Sparse networks: connect neurons whose left features are within this many px "
+            "(default: the preset's)");
+}
+
+void MatcherFlags::AddRefinementFlags(CLI::App* cmd) {
+  vision::RefinementOptions& r = refinement_shown_;
+  AddNumber(cmd, "--lr-tolerance", r.left_right_tolerance_px,
+            "Left-right check: largest distance (px) of the point found back from the left point");
+  AddOnOff(cmd, "subpixel", r.subpixel,
+           "Rectified pairs: parabola sub-pixel fit of the similarity");
+  AddNumber(cmd, "--subpixel-min-offset", r.subpixel_min_offset_px,
+            "The sub-pixel fit leaves a match whose vertex lies closer than this (px) to its whole "
+            "pixel");
+  AddOnOff(cmd, "epipolar-snap", r.epipolar_snap,
+           "Unrectified pairs: move right points onto the left point's epipolar line");
+  AddOnOff(cmd, "epipolar-subpixel", r.epipolar_subpixel,
+           "Unrectified pairs: parabola sub-pixel fit along the epipolar line");
 }
 
 void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {
-  auto& o = options;
-  cmd->add_option("--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)")->capture_default_str();
-  cmd->add_option("--B", o.energy.B, "Energy weight of row uniqueness")->capture_default_str();
-  cmd->add_option("--C", o.energy.C, "Energy weight of column uniqueness")->capture_default_str();
-  cmd->add_option("--D", o.energy.D, "Energy weight of the epipolar distance")->capture_default_str();
-  cmd->add_option("--lambda", o.energy.lambda, "eq. 6.6 slope")->capture_default_str();
-  cmd->add_option("--theta", o.energy.theta, "eq. 6.6 centre")->capture_default_str();
-  cmd->add_flag("--distance-attenuation", o.energy.distance_attenuation,
-                "Printed-code attenuation of weights between far-apart left features");
-  cmd->add_option("--activation", activation, "continuous (default) or discrete")
-      ->capture_default_str();
-  cmd->add_option("--alpha", o.dynamics.alpha, "Activation gain: V = (1 + tanh(u / alpha)) / 2")
-      ->capture_default_str();
-  cmd->add_option("--init", initial_state,
-                  "Initial state: off, on, random-binary, random, constant, constant-noise, "
-                  "correlation")
-      ->capture_default_str();
-  cmd->add_option("--seed", o.dynamics.seed, "Seed of random initial states and update order")
-      ->capture_default_str();
-  cmd->add_option("--dt", o.dynamics.time_step, "Euler time step (units of tau)")->capture_default_str();
-  stop_option = cmd->add_option(
-      "--stop", stop_rule,
-      "What ends the parallel engines' run: energy (|dE| below the tolerance, the thesis's rule) "
-      "or decisions (every row's winner settled); the default shown is what this command runs")
-      ->capture_default_str();
-  check_interval_option = cmd->add_option(
-      "--check-interval", check_interval,
-      "Steps between convergence checks (energy and decisions); the default shown is what "
-      "this command runs")
-      ->capture_default_str();
-  cmd->add_option("--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines")
-      ->capture_default_str();
-  cmd->add_option("--max-updates", o.dynamics.max_updates,
-                  "Update limit of the thesis engine (thesis: 20000)")
-      ->capture_default_str();
-  cmd->add_option("--decode", decode, "thesis (row max, column max, threshold) or one-to-one")
-      ->capture_default_str();
-  cmd->add_option("--weights", weight_storage,
-                  "opencl engine weight storage: " + hnn::WeightStorageNames() +
-                      " (auto: half row blocks when rows are short, else csr; docs/engine.md)")
-      ->capture_default_str();
-  cmd->add_option("--min-confidence", o.min_confidence,
-                  "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least "
-                  "this: fewer, surer matches")
-      ->capture_default_str();
-  cmd->add_option("--threshold", o.decode.threshold, "Minimum activation of an accepted match")
-      ->capture_default_str();
-  cmd->add_option("--memory-budget-mb", memory_budget_mb,
-                  "Refuse networks that need more memory than this (MB)")
-      ->capture_default_str();
+  auto& o = bound_;
+  AddNumber(cmd, "--A", o.energy.A, "Energy weight of compatibility (eq. 6.5)");
+  AddNumber(cmd, "--B", o.energy.B, "Energy weight of row uniqueness");
+  AddNumber(cmd, "--C", o.energy.C, "Energy weight of column uniqueness");
+  AddNumber(cmd, "--D", o.energy.D, "Energy weight of the epipolar distance");
+  AddNumber(cmd, "--T", o.energy.T,
+            "Disparity-gradient scale of the compatibility, g = 2 exp(-DG / T) - 1 (eq. 6.8)");
+  AddNumber(cmd, "--lambda", o.energy.lambda, "eq. 6.6 slope");
+  AddNumber(cmd, "--theta", o.energy.theta, "eq. 6.6 centre");
+  AddOnOff(cmd, "distance-attenuation", o.energy.distance_attenuation,
+           "Printed-code attenuation of weights between far-apart left features");
+  AddText(cmd, "activation", hnn::ActivationName(o.dynamics.activation), "continuous or discrete");
+  AddNumber(cmd, "--alpha", o.dynamics.alpha, "Activation gain: V = (1 + tanh(u / alpha)) / 2");
+  AddText(cmd, "init", hnn::InitialStateName(o.dynamics.initial_state),
+          "Initial state: off, on, random-binary, random, constant, constant-noise, correlation");
+  AddNumber(cmd, "--seed", o.dynamics.seed, "Seed of random initial states and update order");
+  AddNumber(cmd, "--dt", o.dynamics.time_step, "Euler time step (units of tau)");
+  AddText(cmd, "stop", hnn::StopRuleName(o.dynamics.stop_rule),
+          "What ends the parallel engines' run: energy (|dE| below the tolerance, the thesis's "
+          "rule) or decisions (every row's winner settled); the default shown is what this "
+          "command runs");
+  AddNumber(cmd, "--check-interval", o.dynamics.energy_interval,
+            "Steps between convergence checks (energy and decisions); the default shown is what "
+            "this command runs");
+  AddNumber(cmd, "--max-steps", o.dynamics.max_steps, "Step limit of the parallel engines");
+  AddNumber(cmd, "--max-updates", o.dynamics.max_updates,
+            "Update limit of the thesis engine (thesis: 20000)");
+}
+
+void MatcherFlags::AddDecodingFlags(CLI::App* cmd) {
+  auto& o = bound_;
+  AddText(cmd, "decode", hnn::DecodeMethodName(o.decode.method),
+          "thesis (row max, column max, threshold) or one-to-one");
+  AddText(cmd, "weights", hnn::WeightStorageName(o.opencl.storage),
+          "opencl engine weight storage: " + hnn::WeightStorageNames() +
+              " (auto: half row blocks when rows are short, else csr; docs/engine.md)");
+  AddNumber(cmd, "--min-confidence", o.min_confidence,
+            "Keep only matches whose confidence (0-1, MATCHES.csv last column) is at least this: "
+            "fewer, surer matches");
+  AddNumber(cmd, "--threshold", o.decode.threshold, "Minimum activation of an accepted match");
+  memory_budget_mb_ =
+      static_cast<double>(o.memory_budget_bytes) / static_cast<double>(hnn::kBytesPerMegabyte);
+  AddNumber(cmd, "--memory-budget-mb", memory_budget_mb_,
+            "Refuse networks that need more memory than this (MB)");
+}
+
+api::Overrides MatcherFlags::GivenOverrides() const {
+  api::Overrides overrides;
+  for (const CLI::Option* option : added_) {
+    if (option->count() == 0) continue;
+    const std::string& name = option->get_lnames().front();
+    if (auto on = switches_.find(name); on != switches_.end()) {
+      overrides[name] = on->second ? "true" : "false";
+    } else {
+      overrides[name] = option->results().back();
+    }
+  }
+  return overrides;
 }
 
 void MatcherFlags::Resolve() {
   // The library resolves preset + overrides (api/matcher_settings.h), for the CLI, the facade
-  // and Python alike: the values CLI11 bound are the base; the string flags, and the flags the
-  // preset yields to when given, are the overrides.
-  const auto given = [](const CLI::Option* option) { return option && option->count() > 0; };
-  // The library allows 0 steps (sizing a network); from the command line it would solve nothing.
-  if (options.dynamics.max_steps < 1) {
-    throw std::invalid_argument("--max-steps must be >= 1 (0 steps leave every neuron where it "
-                                "started: no match)");
-  }
-  char budget[64];
-  std::snprintf(budget, sizeof(budget), "%.17g", memory_budget_mb);
-  api::Overrides overrides = {{"features", features},   {"engine", engine},
-                              {"init", initial_state},  {"activation", activation},
-                              {"decode", decode},       {"memory-budget-mb", budget},
-                              {"no-lr-check", no_left_right_check ? "true" : "false"}};
-  if (!zrange.empty()) overrides["zrange"] = zrange;
-  if (!device.empty()) overrides["device"] = device;
-  if (given(objective_option)) overrides["objective"] = objective;
-  if (given(network_option)) overrides["network"] = network;
-  if (given(data_term_option)) overrides["data-term"] = data_term;
-  if (given(top_k_option)) overrides["top-k"] = top_k_option->results().back();
-  if (given(support_radius_option)) overrides["support-radius"] = support_radius_option->results().back();
-  if (given(stop_option)) overrides["stop"] = stop_rule;
-  if (given(check_interval_option)) overrides["check-interval"] = std::to_string(check_interval);
-  overrides["weights"] = weight_storage;
-  settings = api::ResolveMatcherSettings(preset, overrides, options);
+  // and Python alike: the base options, the preset, then the flags given.
+  settings = api::ResolveMatcherSettings(preset, GivenOverrides(), options);
   options = settings.matcher;
   refinement = settings.refinement;
-  objective = std::string(hnn::ObjectiveName(options.energy.objective));
+  device = settings.device;
 }
 
 void MatcherFlags::UseFeatureNetworkUnlessRectified(bool rectified) {

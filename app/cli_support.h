@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -19,63 +20,81 @@
 namespace hnnstereo::app {
 
 /// Expands `--config FILE.yml` (flat YAML: "long-option-name: value" per line, '#' comments,
-/// `true`/`false` for flags, lists as [a, b]) into command-line arguments placed after the
-/// subcommand; options given on the command line win. Returns `arguments` unchanged when there is
-/// no --config. `known_option` (optional) says whether the subcommand has an option "--key": an
-/// unknown key is refused naming the file, the line and the key. `origins` (optional) receives,
-/// per option taken from the file, "config file 'F' line N, key 'K'" for later messages.
-/// Throws std::invalid_argument on an unreadable or malformed file or an unknown key.
+/// `true`/`false` for flags - `x: false` gives a pair's `--no-x` - lists as [a, b]) into
+/// command-line arguments placed after the subcommand; options given on the command line win.
+/// Returns `arguments` unchanged when there is no --config. `known_option` (optional) says whether
+/// the subcommand has an option "--key": an unknown key is refused naming the file, the line and
+/// the key. `origins` (optional) receives, per option taken from the file, "config file 'F' line N,
+/// key 'K'" for later messages. Throws std::invalid_argument on an unreadable or malformed file or
+/// an unknown key.
 std::vector<std::string> ExpandConfigArguments(
     const std::vector<std::string>& arguments,
     const std::function<bool(const std::string&)>& known_option = {},
     std::map<std::string, std::string>* origins = nullptr);
 
-/// Matcher options as command-line flags (features, gating, energy, dynamics, decoding).
+/// Help that shows a boolean pair `--x,!--no-x` as "--x,--no-x (default: on)" (AddSwitch) instead
+/// of CLI11's "--x,--no-x{false}", which reads as if the default were off. Set on the root app
+/// before the subcommands are added (they inherit it).
+class SwitchFormatter : public CLI::Formatter {
+ public:
+  std::string make_option_name(const CLI::Option* option, bool is_positional) const override;
+};
+
+/// Adds the boolean pair `--name` / `--no-name` bound to `value`, its help showing `*value` (the
+/// default that runs) as "(default: on)" or "(default: off)".
+CLI::Option* AddSwitch(CLI::App* cmd, const std::string& name, bool* value, const std::string& help);
+
+/// Matcher options as command-line flags (features, gating, energy, dynamics, decoding,
+/// refinements), named as api::ResolveMatcherSettings names them: the flags given become its
+/// overrides, and --help shows the library's defaults (the base options and the shown preset).
 struct MatcherFlags {
+  /// Before AddTo: the base the preset and the flags apply to (MatcherOptions{}; pick and serve:
+  /// PickCellMatcherOptions()). After Resolve(): the resolved options.
   vision::MatcherOptions options;
-  std::string features = "canny";
-  std::string engine = "opencl";
-  std::string objective = "geometry-similarity";
   std::string preset = "hnn-default";
-  bool no_left_right_check = false;
-  vision::RefinementOptions refinement;  ///< from the preset, after Resolve()
-  CLI::Option* objective_option = nullptr;
-  CLI::Option* network_option = nullptr;
-  CLI::Option* data_term_option = nullptr;
-  CLI::Option* top_k_option = nullptr;
-  CLI::Option* support_radius_option = nullptr;
-  CLI::Option* stop_option = nullptr;
-  CLI::Option* check_interval_option = nullptr;
-  std::string stop_rule = "decisions";
-  int check_interval = 2;
-  std::string initial_state = "off";
-  std::string activation = "continuous";
-  std::string decode = "thesis";
-  std::string weight_storage = "auto";
-  std::string network = "feature";
-  std::string data_term = "census";
-  std::string zrange;
-  double memory_budget_mb = 2048.0;
-  std::string device;
+  vision::RefinementOptions refinement;  ///< from the preset and the flags, after Resolve()
+  std::string device;                    ///< --device, after Resolve()
   /// Set before AddTo for commands on calibrated, unrectified cells (pick, serve): the help then
   /// shows the defaults that run there (the feature network of hnn-geometry-lr).
   bool unrectified_cell = false;
   api::MatcherSettings settings;  ///< after Resolve(): the library's resolution of the flags
-  /// Adds the flags to `cmd`.
-  void AddTo(CLI::App* cmd);
-  /// Parses the string-valued flags into `options` and applies the preset (its objective unless
-  /// --objective was given, its refinements unless --no-lr-check) through
-  /// api::ResolveMatcherSettings, as the library facade does; throws std::invalid_argument.
+  /// Adds the flags to `cmd`; `with_preset` false leaves --preset to the command (eval's
+  /// --presets).
+  void AddTo(CLI::App* cmd, bool with_preset = true);
+  /// The matcher flags given on the command line (or by --config), as resolver overrides.
+  api::Overrides GivenOverrides() const;
+  /// api::ResolveMatcherSettings(preset, GivenOverrides(), the base options), as the library
+  /// facade resolves its overrides; throws std::invalid_argument.
   void Resolve();
   /// The preset's feature-vs-disparity network needs rectified rows: for a calibrated,
   /// unrectified pair fall back to the feature-vs-feature network of preset hnn-geometry-lr
   /// (unless --network was given). Call after Resolve() once the geometry is known.
   void UseFeatureNetworkUnlessRectified(bool rectified);
+
  private:
-  void AddEngineFlags(CLI::App* cmd);  ///< AddTo's engine, device, preset and network flags
-  void AddEnergyFlags(CLI::App* cmd);  ///< AddTo's energy, dynamics and decoding flags
+  void AddGatingFlags(CLI::App* cmd);      ///< features, candidates and data term
+  void AddEngineFlags(CLI::App* cmd);      ///< engine, device, objective and refinements
+  void AddRefinementFlags(CLI::App* cmd);  ///< lr-tolerance, sub-pixel and epipolar snap
+  void AddEnergyFlags(CLI::App* cmd);      ///< energy and dynamics
+  void AddDecodingFlags(CLI::App* cmd);    ///< decoding, confidence and memory
+  /// A string-valued flag whose value the resolver parses; `shown` is the default in --help.
+  CLI::Option* AddText(CLI::App* cmd, const std::string& name, std::string_view shown,
+                       const std::string& help);
+  /// A numeric flag bound to `field` (its value the default shown) for CLI11's type check.
+  template <class T>
+  void AddNumber(CLI::App* cmd, const char* name, T& field, const std::string& help) {
+    added_.push_back(cmd->add_option(name, field, help)->capture_default_str());
+  }
+  /// A `--name` / `--no-name` pair whose default shown is `shown`.
+  void AddOnOff(CLI::App* cmd, const std::string& name, bool shown, const std::string& help);
   /// The preset whose values --help shows as defaults (the one that runs by default).
   vision::MatcherPreset ShownPreset() const;
+  vision::MatcherOptions bound_;  ///< CLI11's targets for the numeric flags (type checks, help)
+  std::map<std::string, std::string> texts_;    ///< CLI11's targets for the string flags
+  std::map<std::string, bool> switches_;        ///< CLI11's targets for the boolean flags
+  vision::RefinementOptions refinement_shown_;  ///< the shown preset's; targets of its numbers
+  double memory_budget_mb_ = 0.0;
+  std::vector<CLI::Option*> added_;  ///< every matcher flag, named as the resolver names it
 };
 
 /// The OpenCL runtime for `engine` == opencl; nullptr for the other engines, or when no OpenCL

@@ -26,7 +26,7 @@ struct DemoArgs {
   std::string out = "out/demo";
   std::uint64_t seed = 1;
   int objects = 6;
-  std::string engine = "opencl";
+  std::string engine{vision::EngineName(vision::PickCellMatcherOptions().engine)};
   std::string device;
   bool quiet = false;
 };
@@ -41,11 +41,10 @@ void RunDemo(const DemoArgs& args) {
   render.seed = args.seed;
   render.num_objects = args.objects;
   vision::PositionSensingOptions sensing;
-  if (auto engine = vision::ParseEngine(args.engine)) {
-    sensing.matcher.engine = *engine;
-  } else {
-    throw std::invalid_argument("unknown --engine '" + args.engine + "' (opencl, cpu or thesis)");
-  }
+  // pick's settings, through the library's resolver (--engine its only matcher flag here).
+  sensing.matcher =
+      api::ResolvePickCellSettings({{"engine", args.engine}}, vision::PickCellMatcherOptions())
+          .matcher;
 
   // The output folder and the device are checked before the work.
   CheckOutputFolderWritable("--out", args.out);

@@ -113,6 +113,7 @@ int main(int argc, char** argv) {
       "work failed, 2 usage error (bad option, --config file or refused setup).",
       "hnnstereo"};
   app.require_subcommand(1);
+  app.formatter(std::make_shared<hnnstereo::app::SwitchFormatter>());  // before the subcommands
   app.set_version_flag("--version", kVersion);
   hnnstereo::app::AddMatchCommand(app);
   hnnstereo::app::AddCalibrateCommand(app);

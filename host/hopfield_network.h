@@ -17,8 +17,11 @@
 
 namespace hnnstereo::hnn {
 
-/// Default memory budget for a network (bytes): 2 GB.
-inline constexpr std::size_t kDefaultMemoryBudgetBytes = std::size_t{2} << 30;
+/// Bytes in a megabyte, the unit of `--memory-budget-mb` (MiB: 2^20).
+inline constexpr std::size_t kBytesPerMegabyte = std::size_t{1} << 20;
+/// Default memory budget for a network (bytes): 2048 MB, the one default of every command, the
+/// facade and Python (MatcherOptions::memory_budget_bytes).
+inline constexpr std::size_t kDefaultMemoryBudgetBytes = 2048 * kBytesPerMegabyte;
 
 struct NetworkLayout {
   int n_neurons = 0;

@@ -25,6 +25,34 @@ constexpr std::array<std::pair<InitialState, std::string_view>, 7> kInitialState
     {InitialState::kCorrelation, "correlation"},
 }};
 
+constexpr std::array<std::pair<Activation, std::string_view>, 2> kActivationNames{{
+    {Activation::kContinuous, "continuous"},
+    {Activation::kDiscrete, "discrete"},
+}};
+
+constexpr std::array<std::pair<DynamicsOptions::StopRule, std::string_view>, 2> kStopRuleNames{{
+    {DynamicsOptions::StopRule::kEnergy, "energy"},
+    {DynamicsOptions::StopRule::kDecisions, "decisions"},
+}};
+
+// The name of `value` in `table` ("unknown" when absent), and the value named `name`.
+template <class Enum, std::size_t N>
+std::string_view NameIn(const std::array<std::pair<Enum, std::string_view>, N>& table, Enum value) {
+  for (const auto& [entry, name] : table) {
+    if (entry == value) return name;
+  }
+  return "unknown";
+}
+
+template <class Enum, std::size_t N>
+std::optional<Enum> ValueIn(const std::array<std::pair<Enum, std::string_view>, N>& table,
+                            std::string_view name) {
+  for (const auto& [entry, text] : table) {
+    if (text == name) return entry;
+  }
+  return std::nullopt;
+}
+
 // Largest energy coefficient, gain or time step accepted. The defaults are of order 0.01-10; a
 // value of 1e308 (a typo, a hostile --config) passed "finite" and overflowed the energy to
 // infinity, so that the report said energy null and no neuron was decided. 1e6 still leaves the
@@ -79,32 +107,32 @@ std::string DynamicsOptions::Check() const {
   return {};
 }
 
-std::string_view ObjectiveName(Objective objective) {
-  for (const auto& [value, name] : kObjectiveNames) {
-    if (value == objective) return name;
-  }
-  return "unknown";
-}
+std::string_view ObjectiveName(Objective objective) { return NameIn(kObjectiveNames, objective); }
 
 std::optional<Objective> ParseObjective(std::string_view name) {
-  for (const auto& [value, text] : kObjectiveNames) {
-    if (text == name) return value;
-  }
-  return std::nullopt;
+  return ValueIn(kObjectiveNames, name);
 }
 
-std::string_view InitialStateName(InitialState state) {
-  for (const auto& [value, name] : kInitialStateNames) {
-    if (value == state) return name;
-  }
-  return "unknown";
-}
+std::string_view InitialStateName(InitialState state) { return NameIn(kInitialStateNames, state); }
 
 std::optional<InitialState> ParseInitialState(std::string_view name) {
-  for (const auto& [value, text] : kInitialStateNames) {
-    if (text == name) return value;
-  }
-  return std::nullopt;
+  return ValueIn(kInitialStateNames, name);
+}
+
+std::string_view ActivationName(Activation activation) {
+  return NameIn(kActivationNames, activation);
+}
+
+std::optional<Activation> ParseActivation(std::string_view name) {
+  return ValueIn(kActivationNames, name);
+}
+
+std::string_view StopRuleName(DynamicsOptions::StopRule rule) {
+  return NameIn(kStopRuleNames, rule);
+}
+
+std::optional<DynamicsOptions::StopRule> ParseStopRule(std::string_view name) {
+  return ValueIn(kStopRuleNames, name);
 }
 
 }  // namespace hnnstereo::hnn

@@ -106,5 +106,9 @@ std::string_view ObjectiveName(Objective objective);
 std::optional<Objective> ParseObjective(std::string_view name);
 std::string_view InitialStateName(InitialState state);
 std::optional<InitialState> ParseInitialState(std::string_view name);
+std::string_view ActivationName(Activation activation);  ///< "continuous" or "discrete"
+std::optional<Activation> ParseActivation(std::string_view name);
+std::string_view StopRuleName(DynamicsOptions::StopRule rule);  ///< "energy" or "decisions"
+std::optional<DynamicsOptions::StopRule> ParseStopRule(std::string_view name);
 
 }  // namespace hnnstereo::hnn

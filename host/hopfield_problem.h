@@ -5,7 +5,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hnnstereo::hnn {
@@ -24,6 +26,16 @@ enum class NetworkKind {
   kFeatureVsFeature,    ///< rows = left features, columns = right features (thesis default)
   kFeatureVsDisparity,  ///< columns = disparity levels; uniqueness per left feature only
 };
+
+/// "feature" or "disparity": the names of `--network`, REPORT.json and EVAL.json.
+inline std::string_view NetworkKindName(NetworkKind kind) {
+  return kind == NetworkKind::kFeatureVsDisparity ? "disparity" : "feature";
+}
+inline std::optional<NetworkKind> ParseNetworkKind(std::string_view name) {
+  if (name == "feature") return NetworkKind::kFeatureVsFeature;
+  if (name == "disparity") return NetworkKind::kFeatureVsDisparity;
+  return std::nullopt;
+}
 
 struct MatchingProblem {
   std::vector<Eigen::Vector2f> left_points;   ///< left features (pixels)

@@ -82,9 +82,10 @@ def _image(image, name):
 class Matcher:
     """A preset plus overrides, with its OpenCL device opened once. One thread at a time."""
 
-    def __init__(self, preset="hnn-default", engine="opencl", **options):
+    def __init__(self, preset="hnn-default", engine=None, **options):
         overrides = _overrides(options)
-        overrides["engine"] = str(engine)
+        if engine is not None:  # else the library's default engine (opencl, falling back to cpu)
+            overrides["engine"] = str(engine)
         self._matcher = _Matcher(str(preset), overrides)
         self._lock = _threading.Lock()
 
@@ -111,7 +112,7 @@ _matchers = {}
 _matchers_lock = _threading.Lock()
 
 
-def match(left, right, *, max_disparity=64, calib=None, preset="hnn-default", engine="opencl",
+def match(left, right, *, max_disparity=64, calib=None, preset="hnn-default", engine=None,
           **options):
     """Matches a stereo pair; numpy images, grey uint8 or BGR (uint16 too), same size.
 

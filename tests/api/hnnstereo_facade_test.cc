@@ -123,4 +123,20 @@ TEST(HnnstereoFacadeNames, ListsPresetsAndOptions) {
   EXPECT_STREQ(hnnstereo::Version(), HNNSTEREO_PROJECT_VERSION);
 }
 
+// The facade takes every flag `match` and `eval` take, by the same name (one resolver), and
+// refuses a bad value of the new ones with the CLI's wording.
+TEST(HnnstereoFacadeNames, TakesTheCommandsMatcherFlags) {
+  const std::vector<std::string> options = hnnstereo::MatcherOptionNames();
+  for (const char* name : {"lr-check", "subpixel", "subpixel-min-offset", "epipolar-snap",
+                           "epipolar-subpixel", "lr-tolerance", "zncc-peaks", "subpixel-peaks",
+                           "census-window", "aggregation-window", "support-gamma", "T",
+                           "min-correlation", "memory-budget-mb"}) {
+    EXPECT_NE(std::find(options.begin(), options.end(), name), options.end()) << name;
+  }
+  EXPECT_NO_THROW(hnnstereo::Matcher("hnn-default", {{"engine", "cpu"}, {"T", "2"},
+                                                     {"subpixel", "false"}, {"lr-check", "false"}}));
+  EXPECT_THROW(hnnstereo::Matcher("hnn-default", {{"engine", "cpu"}, {"subpixel-min-offset", "0.7"}}),
+               std::invalid_argument);
+}
+
 }  // namespace

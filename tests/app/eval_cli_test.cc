@@ -94,7 +94,7 @@ TEST_F(EvalCli, OverridesOfTheFirstPresetAreRecorded) {
   const CliResult result =
       RunCli("eval --dataset " + kTeddy + " --out " + Path("eval.json") +
              " --presets hnn-default --no-baselines --engine cpu --max-features 400 --quiet"
-             " --A 1.5 --T 2 --support-gamma 25 --top-k 2");
+             " --A 1.5 --T 2 --support-gamma 25 --top-k 2 --no-lr-check --no-subpixel");
   ASSERT_EQ(result.exit_code, 0) << result.output;
   std::ifstream file(Path("eval.json"));
   const nlohmann::json preset = nlohmann::json::parse(file)["presets"][0];
@@ -104,6 +104,8 @@ TEST_F(EvalCli, OverridesOfTheFirstPresetAreRecorded) {
   EXPECT_EQ(preset["top_k"], 2);
   EXPECT_EQ(preset["data_term"]["kind"], "census");
   EXPECT_DOUBLE_EQ(preset["data_term"]["support_gamma"].get<double>(), 25.0);
+  EXPECT_EQ(preset["left_right_check"], false);  // match's --x/--no-x pairs
+  EXPECT_EQ(preset["subpixel"], false);
 }
 
 TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {

@@ -262,7 +262,8 @@ TEST_F(HostileInputCli, ConfigYamlNonFiniteNumbersAreRefused) {
                 "option 'memory-budget-mb' needs a finite number (got 'inf')");
   ExpectRefused(match_with_config("input_1e300.yml", "memory-budget-mb: 1e300\n"), 2,
                 "memory-budget-mb must be a number in (0, 1099511627776]");
-  ExpectRefused(match_with_config("input_nan.yml", "max-epipolar: nan\n"), 2, "(got nan)");
+  ExpectRefused(match_with_config("input_nan.yml", "max-epipolar: nan\n"), 2,
+                "option 'max-epipolar' needs a finite number (got 'nan')");
   // Finite but absurd: A = 1e308 overflowed the energy (report: energy null, no match).
   ExpectRefused(match_with_config("input_a.yml", "A: 1e308\n"), 2,
                 "A must be >= 0 and <= 1e6");

@@ -192,6 +192,11 @@ struct RankedMethod {
   std::vector<CurvePoint> Curve() const;     ///< ranked curve, or one point per setting
 };
 
+/// The memory budget of `eval`'s networks (bytes): three times the matcher's default
+/// (hnn::kDefaultMemoryBudgetBytes), since the ablation presets on textured full-size sets
+/// (top-8 over every disparity level) build networks of about 2.4 GB.
+inline constexpr std::size_t kEvaluationMemoryBudgetBytes = 3 * hnn::kDefaultMemoryBudgetBytes;
+
 struct EvaluationOptions {
   /// The matchers compared, first = "the default" (the baselines use its matched pixels).
   std::vector<MatcherPreset> presets = {AccurateDefaultPreset(), ThesisPreset()};

@@ -252,19 +252,16 @@ MatcherOptions PickCellMatcherOptions() {
   options.candidates.z_range_mm = std::make_pair(-5.0, 200.0);
   options.candidates.top_k = 8;
   options.energy.support_radius_px = 8.0;
-  // What `pick` and `serve` run (the hnn-default preset's objective, docs/accuracy.md): the
-  // pairwise term as geometric consistency times similarity. One source of truth: the CLI's
-  // CellSensingFlags start from these options.
-  options.energy.objective = hnn::Objective::kGeometrySimilarity;
+  // hnn-default's objective (geometric consistency times similarity, docs/accuracy.md) and
+  // dynamics (the decisions stop rule: on the stress scenes it senses as the energy rule does,
+  // in less time; docs/sensing.md), taken from the preset so that a change of it reaches `pick`
+  // and `serve` (tests/vision/pick_cell_settings_test.cc).
+  const MatcherPreset preset = AccurateDefaultPreset();
+  options.energy.objective = preset.matcher.energy.objective;
+  options.dynamics = preset.matcher.dynamics;
   // The dusty table gives thousands of edge points that all lie at z = 0; the cap (kept spread
   // over the image) bounds the epipolar gating, which dominates the time.
   options.features.max_features = 4000;
-  // hnn-default's stop rule (docs/engine.md): the run ends when every row's decision has
-  // settled (checked every 2 steps, twice in a row), not when the energy has: on the stress
-  // scenes it senses as the energy rule does, in less time (docs/sensing.md).
-  options.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
-  options.dynamics.energy_interval = 2;
-  options.dynamics.stable_checks = 2;
   return options;
 }
 

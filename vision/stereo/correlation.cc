@@ -241,6 +241,16 @@ bool RoundToPixel(const Eigen::Vector2f& point, const cv::Mat& image, int* x, in
 
 }  // namespace
 
+std::string_view DataTermKindName(DataTermOptions::Kind kind) {
+  return kind == DataTermOptions::Kind::kCensus ? "census" : "zncc";
+}
+
+std::optional<DataTermOptions::Kind> ParseDataTermKind(std::string_view name) {
+  if (name == "zncc") return DataTermOptions::Kind::kZncc;
+  if (name == "census") return DataTermOptions::Kind::kCensus;
+  return std::nullopt;
+}
+
 std::string DataTermOptions::Check() const {
   if (kind == Kind::kZncc) return "";
   if (census_window != 3 && census_window != 5) {

@@ -5,7 +5,9 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -34,6 +36,10 @@ struct DataTermOptions {
   std::string Check() const;
   bool operator==(const DataTermOptions&) const = default;
 };
+
+/// "zncc" or "census": the names of `--data-term`, REPORT.json and EVAL.json.
+std::string_view DataTermKindName(DataTermOptions::Kind kind);
+std::optional<DataTermOptions::Kind> ParseDataTermKind(std::string_view name);
 
 /// Per-pixel statistics of the window x window square centred on each pixel of a CV_8UC1
 /// image, as CV_32FC2: the window sum of I and the inverse norm 1 / sqrt(sum (I - mean)^2)

@@ -24,12 +24,12 @@ std::string MatchesCsv(const MatchReport& report) {
 
 nlohmann::json DataTermJson(const MatcherOptions& options) {
   if (options.data_term.kind == DataTermOptions::Kind::kCensus) {
-    return {{"kind", "census"},
+    return {{"kind", DataTermKindName(options.data_term.kind)},
             {"census_window", options.data_term.census_window},
             {"aggregation_window", options.data_term.aggregation_window},
             {"support_gamma", options.data_term.support_gamma}};
   }
-  return {{"kind", "zncc"}, {"zncc_window", options.zncc_window}};
+  return {{"kind", DataTermKindName(options.data_term.kind)}, {"zncc_window", options.zncc_window}};
 }
 
 nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& options) {
@@ -69,15 +69,12 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
   const auto& d = options.dynamics;
   json["dynamics_options"] = {{"alpha", d.alpha}, {"time_step", d.time_step}, {"tau", d.tau},
                               {"max_steps", d.max_steps},
-                              {"stop_rule", d.stop_rule == hnn::DynamicsOptions::StopRule::kDecisions
-                                                ? "decisions" : "energy"},
+                              {"stop_rule", hnn::StopRuleName(d.stop_rule)},
                               {"check_interval", d.energy_interval},
                               {"initial_state", hnn::InitialStateName(d.initial_state)},
-                              {"activation", d.activation == hnn::Activation::kContinuous
-                                                 ? "continuous" : "discrete"}};
+                              {"activation", hnn::ActivationName(d.activation)}};
   json["candidate_options"] = {{"rectified", options.candidates.rectified},
-                               {"network", options.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity
-                                               ? "disparity" : "feature"},
+                               {"network", hnn::NetworkKindName(options.candidates.kind)},
                                {"zncc_peaks", options.candidates.zncc_peaks},
                                {"dense", options.candidates.dense},
                                {"top_k", options.candidates.top_k},
