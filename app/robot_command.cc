@@ -193,8 +193,10 @@ void AddSend(CLI::App* robot_cmd) {
   CLI::App* cmd = robot_cmd->add_subcommand(
       "send", "Send one cell command through a link: home, open, close or stop (the transports "
               "that cannot carry one say so).");
-  cmd->add_option("--command", args->command, "home, open, close or stop")->required();
-  args->link.AddTo(cmd, "The link URI (see 'hnnstereo serve --help')", true);
+  cmd->add_option("--command", args->command, "home, open, close or stop (none needs --frame)")
+      ->required();
+  // No cell command carries a pose: FRAME.yml is optional here.
+  args->link.AddTo(cmd, "The link URI (see 'hnnstereo serve --help')", false);
   cmd->callback([args] {
     robot::CellCommand command;
     if (args->command == "home") {
@@ -210,7 +212,7 @@ void AddSend(CLI::App* robot_cmd) {
                                   "' (home, open, close or stop)");
     }
     if (args->link.robot.empty()) throw std::invalid_argument("send needs --robot URI");
-    std::unique_ptr<robot::RobotLink> link = args->link.Open(nullptr);
+    std::unique_ptr<robot::RobotLink> link = args->link.OpenForCellCommands();
     link->SendCellCommand(command);
     std::printf("sent %s to %s\n", robot::CellCommandName(command), link->Describe().c_str());
   });

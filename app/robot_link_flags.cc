@@ -77,15 +77,27 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
     throw std::invalid_argument("--robot needs --frame FRAME.yml (robot_from_world); make one "
                                 "with 'hnnstereo robot fit-frame' or 'robot thesis-frame'");
   }
+  return OpenWithFrame(frame_out);
+}
+
+std::unique_ptr<robot::RobotLink> RobotLinkFlags::OpenForCellCommands() const {
+  return OpenWithFrame(nullptr);
+}
+
+std::unique_ptr<robot::RobotLink> RobotLinkFlags::OpenWithFrame(robot::RobotFrame* frame_out) const {
   robot::ParseLinkUri(robot);  // a bad URI fails before any file is read
   ThrowIfProblem(planning.Check());
   if (!(io_timeout_ms >= 1.0) || !(heartbeat_ms >= 1.0) || !(ack_timeout_s > 0.0)) {
     throw std::invalid_argument("--io-timeout, --heartbeat and --ack-timeout must be positive");
   }
-  const robot::RobotFrame loaded = robot::LoadRobotFrame(frame);
   robot::SafetyLimits limits;
-  limits.workspace_min = loaded.workspace_min;
-  limits.workspace_max = loaded.workspace_max;
+  const bool frame_given = !frame.empty();
+  if (frame_given) {
+    const robot::RobotFrame loaded = robot::LoadRobotFrame(frame);
+    limits.workspace_min = loaded.workspace_min;
+    limits.workspace_max = loaded.workspace_max;
+    if (frame_out != nullptr) *frame_out = loaded;
+  }
   limits.max_reach_mm = max_reach_mm;
   limits.max_speed_fraction = max_speed;
   ThrowIfProblem(limits.Check());
@@ -94,8 +106,7 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
   options.heartbeat_period = std::chrono::milliseconds(static_cast<long>(heartbeat_ms));
   options.max_poses = max_poses;
   ThrowIfProblem(options.Check());
-  if (frame_out != nullptr) *frame_out = loaded;
-  return robot::OpenLink(robot, robot::SafetyGate(limits, true), options);
+  return robot::OpenLink(robot, robot::SafetyGate(limits, frame_given), options);
 }
 
 robot::CellLoopOptions RobotLinkFlags::LoopOptions() const {

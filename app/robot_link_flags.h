@@ -29,7 +29,14 @@ struct RobotLinkFlags {
   /// Loads FRAME.yml and opens the link with the frame's workspace and these limits.
   /// Throws std::invalid_argument / std::runtime_error with a one-line reason.
   std::unique_ptr<robot::RobotLink> Open(robot::RobotFrame* frame_out) const;
+  /// The link for cell commands only (home, open, close, stop carry no pose): FRAME.yml is
+  /// optional; without it the safety gate refuses every pose (no robot_from_world is known).
+  std::unique_ptr<robot::RobotLink> OpenForCellCommands() const;
   robot::CellLoopOptions LoopOptions() const;
+
+ private:
+  /// Opens the link; without --frame its gate refuses every pose.
+  std::unique_ptr<robot::RobotLink> OpenWithFrame(robot::RobotFrame* frame_out) const;
 };
 
 /// The loop report as JSON (serve --report, pick --robot).

@@ -168,7 +168,7 @@ TEST_F(RobotCli, ServeRefusesBadInputBeforeOpeningTheLink) {
   ExpectCleanFailure(RunCli("serve" + replay + " --frame " + Path("nope.yml") + dry),
                      "frame file", {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve --replay " + Path("missing.json") + " --frame " + frame + dry),
-                     "cannot read", {"picks.jsonl"});
+                     "--replay: cannot read", {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve --frame " + frame + dry), "serve needs --left", {"picks.jsonl"});
   ExpectCleanFailure(
       RunCli("serve" + replay + " --left a.png --frame " + frame + dry), "--replay replaces",
@@ -190,6 +190,22 @@ TEST_F(RobotCli, SendWritesACellCommand) {
   ExpectCleanFailure(RunCli("robot send --command jump --frame " + frame + " --robot dryrun:" +
                             Path("jump.jsonl")),
                      "unknown --command", {"jump.jsonl"});
+}
+
+// No cell command carries a pose, so none needs FRAME.yml; --command stays required.
+TEST_F(RobotCli, SendNeedsNoFrame) {
+  for (const std::string command : {"home", "stop"}) {
+    const CliResult sent =
+        RunCli("robot send --command " + command + " --robot dryrun:" + Path(command + ".jsonl"));
+    ASSERT_EQ(sent.exit_code, 0) << sent.output;
+    const auto lines = ReadJsonLines(Path(command + ".jsonl"));
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_EQ(lines[0]["command"], command);
+  }
+  const CliResult no_command = RunCli("robot send --robot dryrun:" + Path("none.jsonl"));
+  EXPECT_EQ(no_command.exit_code, 2) << no_command.output;
+  EXPECT_NE(no_command.output.find("--command"), std::string::npos) << no_command.output;
+  EXPECT_FALSE(std::filesystem::exists(Path("none.jsonl")));
 }
 
 TEST_F(RobotCli, PickSendsTheSensedPartsThroughTheLink) {
