@@ -105,7 +105,7 @@ TEST_F(ExitCodeCli, CalibrateFailingAfterTheWorkStartedIsExitOne) {
               1, {"height 0, left image"});
 }
 
-TEST_F(ExitCodeCli, ProbeViewEvalAndServeRefuseUnusableInputsWithExitTwo) {
+TEST_F(ExitCodeCli, EveryOtherCommandRefusesUnusableInputsWithExitTwo) {
   const std::string pair = " --left " + Scene("left.png") + " --right " + Scene("right.png");
   ExpectError("probe --left " + Path("nope.png") + " --right " + Scene("right.png") + " --calib " +
                   Scene("calib.yml") + " --point 320,240",
@@ -117,6 +117,12 @@ TEST_F(ExitCodeCli, ProbeViewEvalAndServeRefuseUnusableInputsWithExitTwo) {
               2, {"--calib '" + Scene("calib.yml") + "'"});
   ExpectError("eval --dataset " + Path("nope") + " --out " + Path("out.json"), 2,
               {"--dataset: ", Path("nope")});
+  ExpectError("bench --out " + Path("out.json") + " --left " + Path("nope.png"), 2,
+              {"--left: ", Path("nope.png")});
+  ExpectError("bench --out " + Path("out.json") + " --ground-truth " + Path("nope.png"), 2,
+              {"--ground-truth: ", Path("nope.png")});
+  ExpectError("bench --out " + Path("out.json") + " --left " + Scene("left.png"), 2,
+              {"differ in size"});
   std::ofstream(Path("objects.json")) << "{\"units\": \"mm\", \"objects\": []}\n";
   ExpectError("view --objects " + Path("objects.json") + " --left " + Path("nope.png") +
                   " --duration 0.1",
