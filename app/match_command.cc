@@ -26,6 +26,7 @@ namespace {
 struct MatchArgs {
   std::string left, right, calib, out, report, overlay, save_network, disparity;
   bool rectified = false;
+  bool report_matches = false;
   bool quiet = false;
   std::string config;  // consumed by ExpandConfigArguments in main
   MatcherFlags flags;
@@ -96,6 +97,7 @@ std::vector<std::string> WriteMatchOutputs(const MatchArgs& args, const MatchInp
         api::MatchReportJson(report, options, args.flags.preset, args.flags.refinement);
     json["left"] = args.left;
     json["right"] = args.right;
+    if (args.report_matches) json["matches"] = vision::MatchFeaturesJson(report);
     calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
   }
   if (!args.save_network.empty()) calib::WriteFileAtomically(args.save_network, network_bytes);
@@ -204,6 +206,9 @@ void AddMatchCommand(CLI::App& app) {
   calib_opt->excludes(rect_opt);
   cmd->add_option("--out", args->out, "Output MATCHES.csv")->required();
   cmd->add_option("--report", args->report, "Output REPORT.json");
+  cmd->add_flag("--report-matches", args->report_matches,
+                "REPORT.json also lists every match with its confidence features (potential "
+                "margin, correlation, neighbour agreement; scripts/fit_confidence.py reads them)");
   cmd->add_option("--overlay", args->overlay, "Output PNG: features and matched features");
   cmd->add_option("--disparity", args->disparity,
                   "Output sparse disparity map of a rectified pair, d = x_l - x_r at each match's "

@@ -66,9 +66,23 @@ TEST_F(MatchCli, WritesTheContractFiles) {
   }
   EXPECT_EQ(report["n_matches"].get<int>(), rows);
   EXPECT_LT(report["energy_final"].get<double>(), report["energy_initial"].get<double>());
+  // The matches are in MATCHES.csv, not repeated in the report (a full-Teddy report was 6 MB).
+  EXPECT_FALSE(report.contains("matches"));
+  EXPECT_LT(fs::file_size(Path("r.json")), 16u * 1024u);
   const cv::Mat overlay = cv::imread(Path("o.png"));
   EXPECT_EQ(overlay.cols, 900);
   EXPECT_EQ(overlay.rows, 375 + 56) << "the images, then the legend";
+}
+
+// --report-matches: every match with its confidence features, for fitting the confidence.
+TEST_F(MatchCli, ReportListsTheMatchesWhenAsked) {
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --engine cpu --report " +
+                                        Path("r.json") + " --report-matches"));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(Path("r.json")));
+  ASSERT_TRUE(report.contains("matches"));
+  EXPECT_EQ(report["matches"]["columns"][5], "confidence");
+  EXPECT_EQ(report["matches"]["rows"].size(), report["n_matches"].get<std::size_t>());
 }
 
 // --save-network: the network as solved, which a replay solves to the same state (the cpu
