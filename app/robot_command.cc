@@ -69,6 +69,7 @@ void PrintFrame(const robot::RobotFrame& frame) {
               frame.workspace_min.x(), frame.workspace_max.x(), frame.workspace_min.y(),
               frame.workspace_max.y(), frame.workspace_min.z(), frame.workspace_max.z());
   std::printf("rms_mm: %.3f\n", frame.rms_mm);
+  if (frame.max_reach_mm) std::printf("max_reach_mm: %.1f\n", *frame.max_reach_mm);
 }
 
 void AddFitFrame(CLI::App* robot_cmd) {
@@ -149,7 +150,8 @@ void AddThesisFrame(CLI::App* robot_cmd) {
   CLI::App* cmd = robot_cmd->add_subcommand(
       "thesis-frame",
       "Write the thesis cell's frame: x_r = 600 - X, y_r = 400 - Y, z_r = Z (mm; a half turn "
-      "about z), with a workspace box the thesis arm reaches.");
+      "about z), with a workspace box and reach (max_reach_mm) that cover the table of the "
+      "rendered default cell ('hnnstereo render').");
   cmd->add_option("--out", *out, "Output FRAME.yml")->required();
   cmd->callback([out] {
     const robot::RobotFrame frame = robot::ThesisRobotFrame();

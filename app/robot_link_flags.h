@@ -21,6 +21,7 @@ struct RobotLinkFlags {
   double heartbeat_ms = 1000.0;
   double ack_timeout_s = 10.0;
   double max_reach_mm = robot::SafetyLimits{}.max_reach_mm;
+  CLI::Option* max_reach_option = nullptr;  ///< given: wins over FRAME.yml's max_reach_mm
   double max_speed = robot::SafetyLimits{}.max_speed_fraction;
   int max_poses = 16;
   robot::PickPlanningOptions planning;

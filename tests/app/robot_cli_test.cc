@@ -192,6 +192,26 @@ TEST_F(RobotCli, SendWritesACellCommand) {
                      "unknown --command", {"jump.jsonl"});
 }
 
+// The default rendered cell and the thesis frame agree: every part of `render --seed 7` (8
+// parts, the tallest 131 mm) is sent, none refused as outside the workspace or beyond reach.
+TEST_F(RobotCli, ServeSendsEveryPartOfTheRenderedCellThroughTheThesisFrame) {
+  ASSERT_EQ(RunCli("render --seed 7 --quiet --out " + Path("s7")).exit_code, 0);
+  ASSERT_EQ(RunCli("robot thesis-frame --quiet --out " + Path("frame.yml")).exit_code, 0);
+  const CliResult served =
+      RunCli("serve --left " + Path("s7/left.png") + " --right " + Path("s7/right.png") +
+             " --calib " + Path("s7/calib.yml") + " --frame " + Path("frame.yml") +
+             " --robot dryrun:" + Path("picks.jsonl") + " --cycles 1");
+  ASSERT_EQ(served.exit_code, 0) << served.output;
+  EXPECT_NE(served.output.find("8 parts, 8 sent, 0 refused"), std::string::npos) << served.output;
+  EXPECT_EQ(served.output.find("refused:"), std::string::npos) << served.output;
+  int picks = 0;
+  for (const nlohmann::json& line : ReadJsonLines(Path("picks.jsonl"))) {
+    if (line["type"] == "pick") ++picks;
+    if (line["type"] == "cycle") EXPECT_EQ(line["status"], 2) << line;
+  }
+  EXPECT_EQ(picks, 8) << served.output;
+}
+
 // No cell command carries a pose, so none needs FRAME.yml; --command stays required.
 TEST_F(RobotCli, SendNeedsNoFrame) {
   for (const std::string command : {"home", "stop"}) {
