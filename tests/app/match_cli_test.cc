@@ -85,6 +85,46 @@ TEST_F(MatchCli, ReportListsTheMatchesWhenAsked) {
   EXPECT_EQ(report["matches"]["rows"].size(), report["n_matches"].get<std::size_t>());
 }
 
+// --ply: the matches triangulated in the calibration's world frame. With a Middlebury calib.txt
+// (f = 1000 px, principal point (200, 180), baseline 100 mm) a match of disparity d lies at
+// z = f b / d, x = (x_l - 200) z / f in the left camera's frame. Without --calib: refused.
+TEST_F(MatchCli, PlyHoldsTheTriangulatedMatches) {
+  std::ofstream(Path("input_calib.txt"))
+      << "cam0=[1000 0 200; 0 1000 180; 0 0 1]\ncam1=[1000 0 200; 0 1000 180; 0 0 1]\n"
+         "doffs=0\nbaseline=100\nwidth=450\nheight=375\n";
+  const CliResult result = RunCli(Teddy("--calib " + Path("input_calib.txt") +
+                                        " --max-disparity 64 --engine cpu --ply " + Path("p.ply")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find(Path("p.ply")), std::string::npos) << "not among the files written";
+  std::ifstream ply(Path("p.ply"));
+  std::string line;
+  std::size_t vertices = 0;
+  while (std::getline(ply, line) && line != "end_header") {
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoul(line.substr(15));
+  }
+  std::ifstream csv(Path("m.csv"));
+  std::getline(csv, line);  // header
+  std::size_t checked = 0;
+  while (std::getline(csv, line)) {
+    double xl = 0, yl = 0, xr = 0, yr = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &xl, &yl, &xr, &yr), 4) << line;
+    if (!(xl - xr > 0.0)) continue;  // at infinity or behind: no point
+    double x = 0, y = 0, z = 0;
+    ASSERT_TRUE(ply >> x >> y >> z) << "fewer points than matches with d > 0";
+    ply.ignore(64, '\n');
+    const double expected_z = 1000.0 * 100.0 / (xl - xr);
+    EXPECT_NEAR(z, expected_z, 1e-4 * expected_z) << line;
+    EXPECT_NEAR(x, (xl - 200.0) * expected_z / 1000.0, 1e-4 * expected_z + 1e-3) << line;
+    ++checked;
+  }
+  EXPECT_EQ(checked, vertices);
+  EXPECT_GT(checked, 300u);
+  fs::remove(Path("m.csv"));
+  fs::remove(Path("p.ply"));
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity 64 --ply " + Path("q.ply"))),
+                     "--ply needs --calib");
+}
+
 // --save-network: the network as solved, which a replay solves to the same state (the cpu
 // engine: the match's own iterations and final energy).
 TEST_F(MatchCli, SavedNetworkReplaysAsTheMatchSolvedIt) {
