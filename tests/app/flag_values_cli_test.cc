@@ -66,6 +66,13 @@ TEST_F(FlagValuesCli, DeviceIsRefusedForTheEnginesOnTheHost) {
                   "--device '3' is for --engine opencl");
     EXPECT_FALSE(fs::exists(Path("m.csv")));
   }
+  ExpectRefused(RunCli("demo --engine cpu --device 3 --out " + Path("demo")),
+                "--device '3' is for --engine opencl");
+  ExpectRefused(RunCli("eval --dataset " + kTeddyDir + " --engine cpu --device 3 --out " +
+                       Path("e.json")),
+                "--device '3' is for --engine opencl");
+  EXPECT_FALSE(fs::exists(Path("demo")));
+  EXPECT_FALSE(fs::exists(Path("e.json")));
 }
 
 }  // namespace
