@@ -10,6 +10,7 @@
 #include "app/cli_support.h"
 #include "app/commands.h"
 #include "common/atomic_file.h"
+#include "common/image.h"
 #include "perf/throughput_bench.h"
 
 namespace hnnstereo::app {
@@ -188,6 +189,14 @@ void RunBench(BenchArgs& args) {
   CheckOutputsWritable({{"--out", args.out}});
   ResolveBenchOptions(args);
   perf::ThroughputBenchOptions& bench = args.bench;
+  // Inputs that cannot be used are a refused setup (exit 2), found before the benchmark runs.
+  const vision::LoadedImage left = AsSetupError("--left", [&] { return vision::LoadImage(bench.left); });
+  const vision::LoadedImage right =
+      AsSetupError("--right", [&] { return vision::LoadImage(bench.right); });
+  AsSetupError([&] { vision::CheckSameSize(left, right); });
+  if (!bench.ground_truth.empty()) {
+    AsSetupError("--ground-truth", [&] { return vision::LoadImage(bench.ground_truth); });
+  }
   bench.progress = ProgressBar;
   const bool wants_opencl = std::find(bench.engines.begin(), bench.engines.end(),
                                       hnn::EngineKind::kOpenCL) != bench.engines.end();

@@ -66,40 +66,71 @@ struct CalibrateArguments {
   bool per_point = false;
 };
 
+// Throws std::invalid_argument (a refused setup, exit 2) with `problem` when it is not empty.
+void RefuseIf(const std::string& problem) {
+  if (!problem.empty()) throw std::invalid_argument(problem);
+}
+
+calib::CalibrationResult CalibrateFromPoints(const CalibrateArguments& args,
+                                             const calib::DltOptions& dlt_options) {
+  if (args.points_left.empty() || args.points_right.empty()) {
+    throw std::invalid_argument("--points-left and --points-right go together");
+  }
+  if (!args.target.empty()) {
+    throw std::invalid_argument("give either --points-left/--points-right or --target, not both");
+  }
+  const calib::KnownPoints left =
+      AsSetupError("--points-left", [&] { return calib::ReadKnownPoints(args.points_left); });
+  const calib::KnownPoints right =
+      AsSetupError("--points-right", [&] { return calib::ReadKnownPoints(args.points_right); });
+  return calib::CalibrateFromKnownPoints(left, right, dlt_options);
+}
+
+calib::CalibrationResult CalibrateFromCircles(const CalibrateArguments& args,
+                                              const calib::DltOptions& dlt_options) {
+  if (args.dir.empty()) throw std::invalid_argument("--target circles needs --dir TARGET_DIR");
+  calib::CircleCalibrationOptions options;
+  options.dlt = dlt_options;
+  options.detection.threshold = args.threshold == "intermeans"
+                                    ? calib::CircleDetectionOptions::Threshold::kIntermeans
+                                    : calib::CircleDetectionOptions::Threshold::kOtsu;
+  options.detection.intermeans_offset = args.intermeans_offset;
+  RefuseIf(options.Check());
+  const calib::TargetImages images =
+      AsSetupError("--dir", [&] { return calib::LoadTargetImages(args.dir); });
+  return calib::CalibrateCircleTarget(images, options);
+}
+
+calib::CalibrationResult CalibrateFromChessboard(const CalibrateArguments& args) {
+  if (args.rows <= 0 || args.cols <= 0) {
+    throw std::invalid_argument("--target chessboard needs --rows and --cols (inner corners)");
+  }
+  calib::ChessboardOptions options;
+  options.rows = args.rows;
+  options.cols = args.cols;
+  options.square_mm = args.square_mm;
+  options.left_images = args.left_images;
+  options.right_images = args.right_images;
+  RefuseIf(options.Check());
+  const calib::ChessboardImages images =
+      AsSetupError("--left/--right", [&] { return calib::LoadChessboardImages(options); });
+  return calib::CalibrateChessboard(options, images);
+}
+
 void RunCalibrate(const CalibrateArguments& args) {
-  // The outputs are checked before the (seconds of) detection and calibration.
+  // The outputs are checked before the (seconds of) detection and calibration, and every input
+  // is read before it: a missing or unreadable input is a refused setup (exit 2), a target that
+  // is not found or a calibration that fails is a failed run (exit 1).
   CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}});
   calib::DltOptions dlt_options;
   dlt_options.refine_nonlinear = !args.no_refine;
   calib::CalibrationResult result;
   if (!args.points_left.empty() || !args.points_right.empty()) {
-    if (args.points_left.empty() || args.points_right.empty()) {
-      throw std::invalid_argument("--points-left and --points-right go together");
-    }
-    if (!args.target.empty()) {
-      throw std::invalid_argument("give either --points-left/--points-right or --target, not both");
-    }
-    result = calib::CalibrateFromKnownPoints(args.points_left, args.points_right, dlt_options);
+    result = CalibrateFromPoints(args, dlt_options);
   } else if (args.target == "circles") {
-    if (args.dir.empty()) throw std::invalid_argument("--target circles needs --dir TARGET_DIR");
-    calib::CircleCalibrationOptions options;
-    options.dlt = dlt_options;
-    options.detection.threshold = args.threshold == "intermeans"
-                                      ? calib::CircleDetectionOptions::Threshold::kIntermeans
-                                      : calib::CircleDetectionOptions::Threshold::kOtsu;
-    options.detection.intermeans_offset = args.intermeans_offset;
-    result = calib::CalibrateCircleTarget(args.dir, options);
+    result = CalibrateFromCircles(args, dlt_options);
   } else if (args.target == "chessboard") {
-    calib::ChessboardOptions options;
-    if (args.rows <= 0 || args.cols <= 0) {
-      throw std::invalid_argument("--target chessboard needs --rows and --cols (inner corners)");
-    }
-    options.rows = args.rows;
-    options.cols = args.cols;
-    options.square_mm = args.square_mm;
-    options.left_images = args.left_images;
-    options.right_images = args.right_images;
-    result = calib::CalibrateChessboard(options);
+    result = CalibrateFromChessboard(args);
   } else {
     throw std::invalid_argument(
         "say what to calibrate from: --target circles|chessboard, or --points-left/--points-right");

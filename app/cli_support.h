@@ -126,6 +126,16 @@ auto AsSetupError(Load&& load) -> decltype(load()) {
   }
 }
 
+/// AsSetupError for the input of `option`: its message names the option ("--dir: ...").
+template <class Load>
+auto AsSetupError(const std::string& option, Load&& load) -> decltype(load()) {
+  try {
+    return AsSetupError(std::forward<Load>(load));
+  } catch (const std::invalid_argument& error) {
+    throw std::invalid_argument(option + ": " + error.what());
+  }
+}
+
 /// The options whose value is a file the command writes. `--robot dryrun:FILE` writes FILE too.
 bool IsOutputOption(const std::string& long_name);
 

@@ -40,6 +40,7 @@ void RunDemo(const DemoArgs& args) {
   vision::SceneRenderOptions render;
   render.seed = args.seed;
   render.num_objects = args.objects;
+  render.shrink_to_fit = true;  // every --objects value (1-30) renders, as with `render`
   vision::PositionSensingOptions sensing;
   // pick's settings, through the library's resolver (--engine its only matcher flag here).
   sensing.matcher =

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
+#include <string>
 
 #include "app/cli_support.h"
 #include "app/commands.h"
@@ -13,12 +14,14 @@ namespace {
 
 struct DevicesArgs {
   bool quiet = false;
+  std::string device;  ///< --device: show only this one (index or name part)
 };
 
 void RunDevices(const DevicesArgs& args) {
   std::string why_none;
   const std::vector<ocl::DeviceInfo> devices = ocl::ListDevices(&why_none);
   if (devices.empty()) {
+    if (!args.device.empty()) OpenRuntimeFor(hnn::EngineKind::kOpenCL, args.device);  // refuses
     if (!args.quiet) {
       std::printf("no OpenCL device: %s\nthe opencl engine falls back to the cpu engine (same "
                   "dynamics, one thread); README.md, 'Running on a GPU', says what to install\n",
@@ -26,11 +29,21 @@ void RunDevices(const DevicesArgs& args) {
     }
     return;
   }
-  // The device the matcher opens now (it throws when HNNSTEREO_OPENCL_* asks for a missing one).
-  const std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(hnn::EngineKind::kOpenCL, "");
+  // The device the matcher opens now with --device (it throws, listing the devices, when
+  // --device or HNNSTEREO_OPENCL_* asks for a missing one).
+  const std::unique_ptr<ocl::Runtime> runtime =
+      OpenRuntimeFor(hnn::EngineKind::kOpenCL, args.device);
   if (args.quiet) return;
   std::size_t platform = devices.front().platform_index + 1;  // none printed yet
   for (const ocl::DeviceInfo& info : devices) {
+    const bool in_use = runtime != nullptr && runtime->description() ==
+                                                  info.device_name + " (" + info.platform_name + ")";
+    const bool by_index = !args.device.empty() &&
+                          args.device.find_first_not_of("0123456789") == std::string::npos;
+    if (!args.device.empty() &&
+        (!in_use || (by_index && std::to_string(info.device_index) != args.device))) {
+      continue;  // --device: that device only
+    }
     if (info.platform_index != platform) {
       platform = info.platform_index;
       std::printf("platform %zu: %s\n", info.platform_index, info.platform_name.c_str());
@@ -56,6 +69,9 @@ void AddDevicesCommand(CLI::App& app) {
       "Example:\n"
       "  hnnstereo devices\n"
       "  hnnstereo match ... --device 0        # or --device nvidia, or HNNSTEREO_OPENCL_DEVICE=0");
+  cmd->add_option("--device", args->device,
+                  "Show only this device (index or name part, as 'match --device' takes it); "
+                  "refused when none matches");
   cmd->add_flag("--quiet", args->quiet, "Print nothing; the exit status says whether the device "
                                         "asked for by HNNSTEREO_OPENCL_DEVICE exists");
   cmd->callback([args] { RunDevices(*args); });

@@ -70,13 +70,17 @@ void RunEval(EvalArgs& args) {
   options.warped = args.warped;
   if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
 
-  const std::vector<std::string> directories = vision::FindMiddleburyDatasets(args.dataset);
-  if (directories.empty()) {
-    throw std::runtime_error("no Middlebury set found in '" + args.dataset +
-                             "' (nor in its immediate subfolders)");
-  }
-  std::vector<vision::MiddleburyPair> pairs;
-  for (const std::string& directory : directories) pairs.push_back(vision::LoadMiddlebury(directory));
+  // A dataset that cannot be used is a refused setup (exit 2), found before any matching.
+  const std::vector<vision::MiddleburyPair> pairs = AsSetupError("--dataset", [&] {
+    const std::vector<std::string> directories = vision::FindMiddleburyDatasets(args.dataset);
+    if (directories.empty()) {
+      throw std::runtime_error("no Middlebury set found in '" + args.dataset +
+                               "' (nor in its immediate subfolders)");
+    }
+    std::vector<vision::MiddleburyPair> loaded;
+    for (const std::string& directory : directories) loaded.push_back(vision::LoadMiddlebury(directory));
+    return loaded;
+  });
 
   std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(engine, args.flags.device);
   const vision::EvaluationReport report = vision::Evaluate(pairs, options, runtime.get());

@@ -13,6 +13,9 @@
 #include "calib/calibration.h"
 #include "host/network_file.h"
 #include "common/image.h"
+#include "vision/sensing/ply.h"
+#include "vision/sensing/position_sensing.h"
+#include "vision/sensing/triangulation.h"
 #include "vision/stereo/matcher_presets.h"
 #include "vision/stereo/match_io.h"
 #include "vision/stereo/overlay.h"
@@ -24,8 +27,9 @@ namespace hnnstereo::app {
 namespace {
 
 struct MatchArgs {
-  std::string left, right, calib, out, report, overlay, save_network, disparity;
+  std::string left, right, calib, out, report, overlay, save_network, disparity, ply;
   bool rectified = false;
+  bool report_matches = false;
   bool quiet = false;
   std::string config;  // consumed by ExpandConfigArguments in main
   MatcherFlags flags;
@@ -56,6 +60,11 @@ MatchInputs LoadMatchInputs(const MatchArgs& args, vision::MatcherOptions* optio
   }
   inputs.comparison = api::CheckMatchSetup(inputs.left.grey, inputs.right.grey,
                                            inputs.calibration.get(), *options, "--left and --right");
+  if (!args.ply.empty() && !inputs.calibration) {
+    throw std::invalid_argument("--ply needs --calib (CAL.yml, or a Middlebury calib.txt for a "
+                                "rectified pair): without it the matches have no metric 3D "
+                                "position");
+  }
   if (!args.disparity.empty() && !options->candidates.rectified) {
     throw std::invalid_argument("--disparity needs a rectified pair (--rectified, or a rectified "
                                 "--calib): only there is x_l - x_r a disparity");
@@ -96,6 +105,7 @@ std::vector<std::string> WriteMatchOutputs(const MatchArgs& args, const MatchInp
         api::MatchReportJson(report, options, args.flags.preset, args.flags.refinement);
     json["left"] = args.left;
     json["right"] = args.right;
+    if (args.report_matches) json["matches"] = vision::MatchFeaturesJson(report);
     calib::WriteFileAtomically(args.report, json.dump(2) + "\n");
   }
   if (!args.save_network.empty()) calib::WriteFileAtomically(args.save_network, network_bytes);
@@ -104,13 +114,20 @@ std::vector<std::string> WriteMatchOutputs(const MatchArgs& args, const MatchInp
                                                   report, inputs.left.grey.rows,
                                                   inputs.left.grey.cols));
   }
+  if (!args.ply.empty()) {
+    // In the world frame of the calibration (mm); points as pick keeps them (2 px residual).
+    const std::vector<Eigen::Vector3d> points = vision::MatchesInWorld(
+        *inputs.calibration, report.matches,
+        vision::PositionSensingOptions{}.max_reprojection_error_px);
+    vision::WritePly(args.ply, points, std::vector<int>(points.size(), -1));
+  }
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(
         args.overlay, vision::DrawMatchOverlay(inputs.left.original, inputs.right.original, report));
   }
   std::vector<std::string> written;
   for (const std::string* path :
-       {&args.out, &args.report, &args.save_network, &args.disparity, &args.overlay}) {
+       {&args.out, &args.report, &args.save_network, &args.disparity, &args.ply, &args.overlay}) {
     if (!path->empty()) written.push_back(*path);
   }
   return written;
@@ -139,7 +156,8 @@ void RunMatch(MatchArgs& args) {
   // The whole setup is checked before any work (each check is milliseconds): the outputs, the
   // pair, the disparity range, the device.
   CheckOutputsWritable({{"--out", args.out}, {"--report", args.report}, {"--overlay", args.overlay},
-                        {"--save-network", args.save_network}, {"--disparity", args.disparity}},
+                        {"--save-network", args.save_network}, {"--disparity", args.disparity},
+                        {"--ply", args.ply}},
                        {{"--left", args.left}, {"--right", args.right}, {"--calib", args.calib}});
   MatchInputs inputs = LoadMatchInputs(args, &options);
   std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(options.engine, args.flags.device);
@@ -191,7 +209,10 @@ void AddMatchCommand(CLI::App& app) {
       "  hnnstereo match --left im2.png --right im6.png --rectified --max-disparity 64 \\\n"
       "      --out matches.csv --report report.json --overlay overlay.png\n"
       "Outputs: MATCHES.csv (xl,yl,xr,yr,activation,confidence; 0-based pixels), REPORT.json (engine, "
-      "sizes, iterations, energies, timing_ms).");
+      "sizes, iterations, energies, timing_ms).\n"
+      "Example (calibrated cell, matches as 3D points):\n"
+      "  hnnstereo match --left s7/left.png --right s7/right.png --calib s7/calib.yml \\\n"
+      "      --out matches.csv --ply points.ply");
   cmd->add_option("--left", args->left, "Left image (8/16-bit, grey or colour)")->required();
   cmd->add_option("--right", args->right, "Right image, same size")->required();
   auto* calib_opt = cmd->add_option(
@@ -204,11 +225,18 @@ void AddMatchCommand(CLI::App& app) {
   calib_opt->excludes(rect_opt);
   cmd->add_option("--out", args->out, "Output MATCHES.csv")->required();
   cmd->add_option("--report", args->report, "Output REPORT.json");
+  cmd->add_flag("--report-matches", args->report_matches,
+                "REPORT.json also lists every match with its confidence features (potential "
+                "margin, correlation, neighbour agreement; scripts/fit_confidence.py reads them)");
   cmd->add_option("--overlay", args->overlay, "Output PNG: features and matched features");
   cmd->add_option("--disparity", args->disparity,
                   "Output sparse disparity map of a rectified pair, d = x_l - x_r at each match's "
                   "left pixel: .pfm float32 with NaN where nothing matched, or .png uint16 in the "
                   "KITTI scaling (256 d, 0 = no match)");
+  cmd->add_option("--ply", args->ply,
+                  "Output PLY point cloud of the triangulated matches (ASCII, x y z in mm, the "
+                  "world frame of --calib; a Middlebury calib.txt: the left camera's frame). "
+                  "Needs --calib; matches reprojecting worse than 2 px are left out");
   cmd->add_option("--save-network", args->save_network,
                   "Output: the Hopfield network as solved (problem, energy and dynamics; binary "
                   "HNNET1) - replay and time it on any OpenCL device with hnnstereo_replay "

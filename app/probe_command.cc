@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "calib/calibration.h"
 #include "common/image.h"
@@ -39,11 +40,19 @@ void RunProbe(ProbeArgs& args) {
       throw std::invalid_argument("--zrange must be ZMIN,ZMAX (got '" + args.zrange + "')");
     }
   }
-  const vision::LoadedImage left = vision::LoadImage(args.left);
-  const vision::LoadedImage right = vision::LoadImage(args.right);
-  vision::CheckSameSize(left, right);
-  vision::CheckDistinctViews(left.grey, right.grey, "--left and --right");
-  const calib::StereoCalibration calibration = calib::LoadCalibration(args.calib);
+  // Inputs that cannot be used are a refused setup (exit 2), found before any matching.
+  const vision::LoadedImage left = AsSetupError("--left", [&] { return vision::LoadImage(args.left); });
+  const vision::LoadedImage right =
+      AsSetupError("--right", [&] { return vision::LoadImage(args.right); });
+  const calib::StereoCalibration calibration =
+      AsSetupError("--calib", [&] { return calib::LoadCalibration(args.calib); });
+  AsSetupError([&] {
+    vision::CheckSameSize(left, right);
+    vision::CheckDistinctViews(left.grey, right.grey, "--left and --right");
+  });
+  if (auto problem = calibration.ImageSizeProblem(left.grey.cols, left.grey.rows); !problem.empty()) {
+    throw std::invalid_argument("--calib '" + args.calib + "' " + problem);
+  }
   if (calibration.rectified) {
     throw std::invalid_argument("probe needs the cell's CAL.yml (world frame), not a rectified calib.txt");
   }

@@ -19,6 +19,7 @@ struct RenderArgs {
   vision::SceneRenderOptions options;
   std::string out;
   std::string size_range, height_range, brightness, texture = "random", resolution;
+  bool min_gap_given = false;
   bool quiet = false;
 };
 
@@ -57,6 +58,9 @@ void ResolveRenderArgs(RenderArgs& args) {
   } else {
     throw std::invalid_argument("unknown --texture '" + args.texture + "' (plain or random)");
   }
+  // Sizes and a gap the caller chose are kept (a count that does not fit them is refused); at
+  // the defaults, many parts get smaller ones so that every --objects value renders.
+  o.shrink_to_fit = args.size_range.empty() && !args.min_gap_given;
   if (const std::string problem = o.Check(); !problem.empty()) throw std::invalid_argument(problem);
 }
 
@@ -64,6 +68,7 @@ void RunRender(RenderArgs& args) {
   ResolveRenderArgs(args);
   const auto start = std::chrono::steady_clock::now();
   CheckOutputFolderWritable("--out", args.out);  // before the seconds of ray casting
+  vision::PlaceSceneObjects(args.options);  // parts that do not fit: refused before any drawing
   // Everything is rendered before anything is written; progress goes to stderr (seconds).
   if (!args.quiet) std::fprintf(stderr, "rendering the scene (both cameras)...\n");
   const vision::RenderedScene scene = vision::RenderScene(args.options);
@@ -82,6 +87,13 @@ void RunRender(RenderArgs& args) {
               scene.cameras.image_width, scene.cameras.image_height,
               vision::SceneBrightness(args.options), target.description.placements.size(),
               seconds);
+  if (scene.size_scale < 1.0) {
+    std::printf("%zu parts fit with top faces and gap scaled by %.2f (sides %.0f-%.0f mm, gap "
+                "%.1f mm)\n",
+                scene.objects.size(), scene.size_scale, args.options.min_side_mm * scene.size_scale,
+                args.options.max_side_mm * scene.size_scale,
+                args.options.min_gap_mm * scene.size_scale);
+  }
   std::printf("%3s %-8s %8s %8s %8s %8s  %s\n", "id", "shape", "x", "y", "height", "yaw", "size");
   int id = 1;
   for (const vision::SceneObject& object : scene.objects) {
@@ -117,12 +129,15 @@ void AddRenderCommand(CLI::App& app) {
           "SEED >= 0"))
       ->required();
   cmd->add_option("--objects", args->options.num_objects,
-                  "Number of parts (1-30; default: 1-9 drawn from the seed, as many as fit the work area)")
+                  "Number of parts (1-30; default: 1-9 drawn from the seed, as many as fit the "
+                  "work area). More than fit at the default sizes get smaller top faces and gap "
+                  "(render says by how much); with --size-range or --min-gap they are refused")
       ->check(CLI::Range(1, 30));
   cmd->add_option("--out", args->out, "Output folder (created)")->required();
   cmd->add_option("--min-gap", args->options.min_gap_mm,
                   "Smallest gap between parts (mm); 0 lets them touch")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->each([args](const std::string&) { args->min_gap_given = true; });
   cmd->add_option("--noise", args->options.noise_sigma_grey, "Sensor noise sigma (grey levels)")
       ->capture_default_str();
   cmd->add_option("--blur", args->options.blur_sigma_px, "Gaussian optical blur sigma (px)")

@@ -69,6 +69,7 @@ void PrintFrame(const robot::RobotFrame& frame) {
               frame.workspace_min.x(), frame.workspace_max.x(), frame.workspace_min.y(),
               frame.workspace_max.y(), frame.workspace_min.z(), frame.workspace_max.z());
   std::printf("rms_mm: %.3f\n", frame.rms_mm);
+  if (frame.max_reach_mm) std::printf("max_reach_mm: %.1f\n", *frame.max_reach_mm);
 }
 
 void AddFitFrame(CLI::App* robot_cmd) {
@@ -149,7 +150,8 @@ void AddThesisFrame(CLI::App* robot_cmd) {
   CLI::App* cmd = robot_cmd->add_subcommand(
       "thesis-frame",
       "Write the thesis cell's frame: x_r = 600 - X, y_r = 400 - Y, z_r = Z (mm; a half turn "
-      "about z), with a workspace box the thesis arm reaches.");
+      "about z), with a workspace box and reach (max_reach_mm) that cover the table of the "
+      "rendered default cell ('hnnstereo render').");
   cmd->add_option("--out", *out, "Output FRAME.yml")->required();
   cmd->callback([out] {
     const robot::RobotFrame frame = robot::ThesisRobotFrame();
@@ -193,8 +195,10 @@ void AddSend(CLI::App* robot_cmd) {
   CLI::App* cmd = robot_cmd->add_subcommand(
       "send", "Send one cell command through a link: home, open, close or stop (the transports "
               "that cannot carry one say so).");
-  cmd->add_option("--command", args->command, "home, open, close or stop")->required();
-  args->link.AddTo(cmd, "The link URI (see 'hnnstereo serve --help')", true);
+  cmd->add_option("--command", args->command, "home, open, close or stop (none needs --frame)")
+      ->required();
+  // No cell command carries a pose: FRAME.yml is optional here.
+  args->link.AddTo(cmd, "The link URI (see 'hnnstereo serve --help')", false);
   cmd->callback([args] {
     robot::CellCommand command;
     if (args->command == "home") {
@@ -210,7 +214,7 @@ void AddSend(CLI::App* robot_cmd) {
                                   "' (home, open, close or stop)");
     }
     if (args->link.robot.empty()) throw std::invalid_argument("send needs --robot URI");
-    std::unique_ptr<robot::RobotLink> link = args->link.Open(nullptr);
+    std::unique_ptr<robot::RobotLink> link = args->link.OpenForCellCommands();
     link->SendCellCommand(command);
     std::printf("sent %s to %s\n", robot::CellCommandName(command), link->Describe().c_str());
   });

@@ -1,7 +1,6 @@
 #include "app/robot_link_flags.h"
 
 #include "api/matcher_settings.h"
-#include "robot/modbus_registers.h"
 
 #include <algorithm>
 #include <chrono>
@@ -57,9 +56,11 @@ void RobotLinkFlags::AddTo(CLI::App* cmd, const std::string& robot_help, bool fr
   cmd->add_option("--ack-timeout", ack_timeout_s,
                   "Wait this long for the robot side to acknowledge a result (s)")
       ->capture_default_str();
-  cmd->add_option("--max-reach", max_reach_mm,
-                  "Safety gate: refuse poses farther than this from the robot base (mm)")
-      ->capture_default_str();
+  max_reach_option =
+      cmd->add_option("--max-reach", max_reach_mm,
+                      "Safety gate: refuse poses farther than this from the robot base (mm; "
+                      "default FRAME.yml's max_reach_mm when it has one)")
+          ->capture_default_str();
   cmd->add_option("--max-speed", max_speed, "Safety gate: speeds above this fraction are clamped")
       ->capture_default_str();
   cmd->add_option("--speed", planning.speed_fraction, "Requested speed (fraction of maximum)")
@@ -77,16 +78,30 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
     throw std::invalid_argument("--robot needs --frame FRAME.yml (robot_from_world); make one "
                                 "with 'hnnstereo robot fit-frame' or 'robot thesis-frame'");
   }
+  return OpenWithFrame(frame_out);
+}
+
+std::unique_ptr<robot::RobotLink> RobotLinkFlags::OpenForCellCommands() const {
+  return OpenWithFrame(nullptr);
+}
+
+std::unique_ptr<robot::RobotLink> RobotLinkFlags::OpenWithFrame(robot::RobotFrame* frame_out) const {
   robot::ParseLinkUri(robot);  // a bad URI fails before any file is read
   ThrowIfProblem(planning.Check());
   if (!(io_timeout_ms >= 1.0) || !(heartbeat_ms >= 1.0) || !(ack_timeout_s > 0.0)) {
     throw std::invalid_argument("--io-timeout, --heartbeat and --ack-timeout must be positive");
   }
-  const robot::RobotFrame loaded = robot::LoadRobotFrame(frame);
   robot::SafetyLimits limits;
-  limits.workspace_min = loaded.workspace_min;
-  limits.workspace_max = loaded.workspace_max;
   limits.max_reach_mm = max_reach_mm;
+  const bool frame_given = !frame.empty();
+  if (frame_given) {
+    const robot::RobotFrame loaded = robot::LoadRobotFrame(frame);
+    limits.workspace_min = loaded.workspace_min;
+    limits.workspace_max = loaded.workspace_max;
+    const bool reach_given = max_reach_option != nullptr && max_reach_option->count() > 0;
+    if (loaded.max_reach_mm && !reach_given) limits.max_reach_mm = *loaded.max_reach_mm;
+    if (frame_out != nullptr) *frame_out = loaded;
+  }
   limits.max_speed_fraction = max_speed;
   ThrowIfProblem(limits.Check());
   robot::LinkOptions options;
@@ -94,8 +109,7 @@ std::unique_ptr<robot::RobotLink> RobotLinkFlags::Open(robot::RobotFrame* frame_
   options.heartbeat_period = std::chrono::milliseconds(static_cast<long>(heartbeat_ms));
   options.max_poses = max_poses;
   ThrowIfProblem(options.Check());
-  if (frame_out != nullptr) *frame_out = loaded;
-  return robot::OpenLink(robot, robot::SafetyGate(limits, true), options);
+  return robot::OpenLink(robot, robot::SafetyGate(limits, frame_given), options);
 }
 
 robot::CellLoopOptions RobotLinkFlags::LoopOptions() const {
@@ -139,7 +153,7 @@ nlohmann::json CellLoopReportJson(const robot::CellLoopReport& report) {
 
 void PrintCycleLine(const robot::CycleLog& log) {
   // The status code the cell sees (docs/robot.md): 2 result ready, or a negative error code.
-  const int status = log.status < 0 ? log.status : robot::modbus::kStatusResultReady;
+  const int status = robot::PublishedStatusCode(log.status);
   std::printf("cycle %d request %u: %d parts, %d sent, %d refused, status %d%s%s, %s, sense %.0f "
               "ms, cycle %.0f ms\n",
               log.cycle, log.request_sequence, log.objects, log.published, log.refused, status,

@@ -21,6 +21,7 @@ struct RobotLinkFlags {
   double heartbeat_ms = 1000.0;
   double ack_timeout_s = 10.0;
   double max_reach_mm = robot::SafetyLimits{}.max_reach_mm;
+  CLI::Option* max_reach_option = nullptr;  ///< given: wins over FRAME.yml's max_reach_mm
   double max_speed = robot::SafetyLimits{}.max_speed_fraction;
   int max_poses = 16;
   robot::PickPlanningOptions planning;
@@ -29,7 +30,14 @@ struct RobotLinkFlags {
   /// Loads FRAME.yml and opens the link with the frame's workspace and these limits.
   /// Throws std::invalid_argument / std::runtime_error with a one-line reason.
   std::unique_ptr<robot::RobotLink> Open(robot::RobotFrame* frame_out) const;
+  /// The link for cell commands only (home, open, close, stop carry no pose): FRAME.yml is
+  /// optional; without it the safety gate refuses every pose (no robot_from_world is known).
+  std::unique_ptr<robot::RobotLink> OpenForCellCommands() const;
   robot::CellLoopOptions LoopOptions() const;
+
+ private:
+  /// Opens the link; without --frame its gate refuses every pose.
+  std::unique_ptr<robot::RobotLink> OpenWithFrame(robot::RobotFrame* frame_out) const;
 };
 
 /// The loop report as JSON (serve --report, pick --robot).

@@ -93,8 +93,10 @@ class CellSensor {
   CellSensor(ServeArgs& args, std::optional<web::CellStatusRecorder>* status)
       : args_(args), status_(*status) {
     if (!args.replay.empty()) {
-      replayed_ = robot::SensedObjectsFromJson(ReadText(args.replay));
-      if (status_) replayed_file_ = nlohmann::json::parse(ReadText(args.replay));
+      AsSetupError("--replay", [&] {
+        replayed_ = robot::SensedObjectsFromJson(ReadText(args.replay));
+        if (status_) replayed_file_ = nlohmann::json::parse(ReadText(args.replay));
+      });
       return;
     }
     args.cell.Resolve();

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "app/cell_page_flags.h"
+#include "app/cli_support.h"
 #include "app/commands.h"
 #include "app/robot_link_flags.h"
 #include "calib/calibration.h"
@@ -37,9 +38,12 @@ void RunView(ViewArgs& args) {
   if (!in) throw std::invalid_argument("cannot read --objects '" + args.objects + "'");
   std::stringstream text;
   text << in.rdbuf();
-  robot::SensedObjectsFromJson(text.str());  // names a malformed file's problem
-  const nlohmann::json objects = nlohmann::json::parse(text.str());
-  const vision::LoadedImage left = vision::LoadImage(args.left);
+  // Inputs that cannot be used are a refused setup (exit 2), found before the page starts.
+  const nlohmann::json objects = AsSetupError("--objects '" + args.objects + "'", [&] {
+    robot::SensedObjectsFromJson(text.str());  // names a malformed file's problem
+    return nlohmann::json::parse(text.str());
+  });
+  const vision::LoadedImage left = AsSetupError("--left", [&] { return vision::LoadImage(args.left); });
 
   // The outlines need P1: --calib, else the calibration OBJECTS.json names (pick writes it).
   std::string calib_path = args.calib;
@@ -58,7 +62,7 @@ void RunView(ViewArgs& args) {
                                        calibration.intrinsics->D1);
       }
     } catch (const std::exception& error) {
-      if (calib_given) throw;
+      if (calib_given) throw std::invalid_argument(std::string("--calib: ") + error.what());
       std::cerr << "hnnstereo: notice: the parts are shown without outlines: cannot use the "
                    "calibration OBJECTS.json names ("
                 << error.what() << "); give --calib\n";

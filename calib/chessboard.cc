@@ -97,18 +97,23 @@ cv::Mat ReadPairImage(const std::string& path, int camera, cv::Size* image_size)
 
 // Detects the board in every pair; throws when fewer than min_pairs pairs show it.
 ChessboardViews CollectViews(const ChessboardOptions& options,
-                             const std::vector<cv::Point3f>& board) {
+                             const std::vector<cv::Point3f>& board,
+                             const ChessboardImages& images) {
   ChessboardViews views;
-  for (size_t pair = 0; pair < options.left_images.size(); ++pair) {
+  for (int camera = 0; camera < 2; ++camera) {
+    const std::vector<cv::Mat>& camera_images = camera == 0 ? images.left : images.right;
+    if (!camera_images.empty()) views.image_size[camera] = camera_images.front().size();
+  }
+  for (size_t pair = 0; pair < images.left.size() && pair < images.right.size(); ++pair) {
     std::optional<std::vector<Eigen::Vector2d>> found[2];
-    cv::Mat images[2];
+    const cv::Mat* pair_images[2] = {&images.left[pair], &images.right[pair]};
     for (int camera = 0; camera < 2; ++camera) {
-      const std::string& path =
-          camera == 0 ? options.left_images[pair] : options.right_images[pair];
-      images[camera] = ReadPairImage(path, camera, &views.image_size[camera]);
-      found[camera] = DetectChessboardCorners(images[camera], options.rows, options.cols,
+      found[camera] = DetectChessboardCorners(*pair_images[camera], options.rows, options.cols,
                                               options.subpixel_window);
-      if (!found[camera]) views.skipped.push_back(path);
+      if (!found[camera]) {
+        views.skipped.push_back(camera == 0 ? options.left_images[pair]
+                                            : options.right_images[pair]);
+      }
     }
     if (!found[0] || !found[1]) continue;
     views.object_points.push_back(board);
@@ -118,7 +123,7 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
         view.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
       }
       views.corners[camera].push_back(view);
-      if (views.first_image[camera].empty()) views.first_image[camera] = images[camera];
+      if (views.first_image[camera].empty()) views.first_image[camera] = *pair_images[camera];
     }
   }
   if (static_cast<int>(views.object_points.size()) < options.min_pairs) {
@@ -228,13 +233,33 @@ void AddChessboardReportExtras(const ChessboardOptions& options, const Chessboar
 
 }  // namespace
 
+ChessboardImages LoadChessboardImages(const ChessboardOptions& options) {
+  ChessboardImages images;
+  cv::Size image_size[2];
+  for (size_t pair = 0; pair < options.left_images.size(); ++pair) {
+    images.left.push_back(ReadPairImage(options.left_images[pair], 0, &image_size[0]));
+    if (pair < options.right_images.size()) {
+      images.right.push_back(ReadPairImage(options.right_images[pair], 1, &image_size[1]));
+    }
+  }
+  return images;
+}
+
 CalibrationResult CalibrateChessboard(const ChessboardOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
+  return CalibrateChessboard(options, LoadChessboardImages(options));
+}
+
+CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
+                                      const ChessboardImages& images) {
   const auto start = std::chrono::steady_clock::now();
   if (const std::string problem = options.Check(); !problem.empty()) {
     throw std::runtime_error(problem);
   }
   const std::vector<cv::Point3f> board = BoardPoints(options);
-  const ChessboardViews views = CollectViews(options, board);
+  const ChessboardViews views = CollectViews(options, board, images);
   CalibrationResult result;
   result.report.method = "chessboard";
   result.report.num_views = static_cast<int>(views.object_points.size());

@@ -36,7 +36,22 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Ma
                                                                     int cols,
                                                                     int subpixel_window = 11);
 
-/// Runs the calibration. Report extras: opencv_rms_left_px, opencv_rms_right_px (as returned by
+/// The images of a chessboard calibration (grey), in the order of ChessboardOptions' paths.
+struct ChessboardImages {
+  std::vector<cv::Mat> left, right;
+};
+
+/// Reads every image `options` names, before any detection (`calibrate` refuses a bad input as
+/// a setup error). @throws std::runtime_error naming the image: missing, unreadable, or not the
+/// size of its camera's first image.
+ChessboardImages LoadChessboardImages(const ChessboardOptions& options);
+
+/// Runs the calibration on the images LoadChessboardImages read for `options`.
+/// @throws std::runtime_error naming the option at fault, or when too few pairs show the board.
+CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
+                                      const ChessboardImages& images);
+
+/// Reads the images, then runs the calibration. Report extras: opencv_rms_left_px, opencv_rms_right_px (as returned by
 /// cv::calibrateCamera), stereo_rms_px, num_pairs, skipped images.
 /// @throws std::runtime_error naming the image or option at fault.
 CalibrationResult CalibrateChessboard(const ChessboardOptions& options);

@@ -599,36 +599,58 @@ CalibrationResult CalibrateFromCorrespondences(
   return result;
 }
 
+TargetImages LoadTargetImages(const std::string& target_dir) {
+  TargetImages loaded;
+  loaded.target = LoadTargetDirectory(target_dir);
+  const char* names[2] = {"left", "right"};
+  for (const TargetPlacement& placement : loaded.target.placements) {
+    for (int camera = 0; camera < 2; ++camera) {
+      const std::string& path = camera == 0 ? placement.left_image : placement.right_image;
+      std::vector<cv::Mat>& images = camera == 0 ? loaded.left : loaded.right;
+      const cv::Mat image = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
+      if (!images.empty() && image.size() != images.front().size()) {
+        throw std::runtime_error("image '" + path + "' differs in size from the " + names[camera] +
+                                 " image of height 0");
+      }
+      images.push_back(image);
+    }
+  }
+  return loaded;
+}
+
 CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
+                                        const CircleCalibrationOptions& options) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::runtime_error(problem);
+  }
+  return CalibrateCircleTarget(LoadTargetImages(target_dir), options);
+}
+
+CalibrationResult CalibrateCircleTarget(const TargetImages& images,
                                         const CircleCalibrationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   if (const std::string problem = options.Check(); !problem.empty()) {
     throw std::runtime_error(problem);
   }
-  const TargetDescription target = LoadTargetDirectory(target_dir);
+  const TargetDescription& target = images.target;
   CircleDetectionOptions detection_options = options.detection;
   detection_options.dark_circles = target.dark_circles;
   const std::vector<std::vector<int>> rotations = GridRotations(target.grid.rows, target.grid.cols);
   const size_t num_views = target.placements.size();
+  if (num_views == 0 || images.left.size() != num_views || images.right.size() != num_views) {
+    throw std::invalid_argument("CalibrateCircleTarget: one left and one right image per height, "
+                                "at least one height");
+  }
 
   std::vector<std::vector<Eigen::Vector3d>> world(num_views);
   std::vector<std::vector<Eigen::Vector2d>> centres[2];
-  cv::Mat first_images[2];
-  int image_width = 0, image_height = 0;
   const char* names[2] = {"left", "right"};
   for (size_t v = 0; v < num_views; ++v) {
     const TargetPlacement& placement = target.placements[v];
     world[v] = target.grid.PointsInWorld(placement.world_from_target);
     for (int camera = 0; camera < 2; ++camera) {
       const std::string& path = camera == 0 ? placement.left_image : placement.right_image;
-      const cv::Mat image = ReadImageFileWithin(path, cv::IMREAD_GRAYSCALE);  // size-checked first
-      if (v == 0) {
-        first_images[camera] = image;
-        if (camera == 0) image_width = image.cols, image_height = image.rows;
-      } else if (image.size() != first_images[camera].size()) {
-        throw std::runtime_error("image '" + path + "' differs in size from the " + names[camera] +
-                                 " image of height 0");
-      }
+      const cv::Mat& image = camera == 0 ? images.left[v] : images.right[v];
       const CircleGridDetection detection =
           DetectCircleGrid(image, target.grid, detection_options, options.grid);
       if (!detection.found) {
@@ -661,8 +683,8 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
   }
   CalibrationResult result =
       CalibrateFromCorrespondences("circles", world, ordered[0], world, ordered[1], options.dlt);
-  result.calibration.image_width = image_width;
-  result.calibration.image_height = image_height;
+  result.calibration.image_width = images.left.front().cols;
+  result.calibration.image_height = images.left.front().rows;
   result.report.notes = notes;
   const int cols = target.grid.cols;
   for (int camera = 0; camera < 2; ++camera) {
@@ -674,8 +696,9 @@ CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
                               .append("c")
                               .append(std::to_string(index % cols));
     }
-    camera_report.overlay =
-        DrawCalibrationOverlay(first_images[camera], camera_report.observations);
+    camera_report.overlay = DrawCalibrationOverlay(camera == 0 ? images.left.front()
+                                                               : images.right.front(),
+                                                   camera_report.observations);
   }
   result.report.extra["grid"] = {
       {"rows", target.grid.rows}, {"cols", target.grid.cols}, {"pitch_mm", target.grid.pitch_mm}};

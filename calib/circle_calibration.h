@@ -6,6 +6,7 @@
 // poses, and each camera gets a normalised DLT (calib/dlt.h).
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -74,7 +75,23 @@ struct CircleCalibrationOptions {
   std::string Check() const;
 };
 
-/// Detects, orders and calibrates from TARGET_DIR. The overlays are drawn on the first height's
+/// target.yml with its images (grey, one per placement and camera), read before any detection.
+struct TargetImages {
+  TargetDescription target;
+  std::vector<cv::Mat> left, right;
+};
+
+/// Reads DIR/target.yml (LoadTargetDirectory) and every image it names, so that `calibrate`
+/// refuses a bad input as a setup error. @throws std::runtime_error naming the file: as
+/// LoadTargetDirectory, an unreadable image, an image not the size of its camera's first.
+TargetImages LoadTargetImages(const std::string& target_dir);
+
+/// Detects, orders and calibrates from images LoadTargetImages read. The overlays are drawn on
+/// the first height's images. @throws std::runtime_error naming the image or field at fault.
+CalibrationResult CalibrateCircleTarget(const TargetImages& images,
+                                        const CircleCalibrationOptions& options = {});
+
+/// LoadTargetImages, then CalibrateCircleTarget. Detects, orders and calibrates from TARGET_DIR. The overlays are drawn on the first height's
 /// images. @throws std::runtime_error naming the image or field at fault.
 CalibrationResult CalibrateCircleTarget(const std::string& target_dir,
                                         const CircleCalibrationOptions& options = {});

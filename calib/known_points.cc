@@ -64,9 +64,13 @@ KnownPoints ReadKnownPoints(const std::string& path) {
 CalibrationResult CalibrateFromKnownPoints(const std::string& left_points_path,
                                            const std::string& right_points_path,
                                            const DltOptions& options) {
+  return CalibrateFromKnownPoints(ReadKnownPoints(left_points_path),
+                                  ReadKnownPoints(right_points_path), options);
+}
+
+CalibrationResult CalibrateFromKnownPoints(const KnownPoints& left, const KnownPoints& right,
+                                           const DltOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  const KnownPoints left = ReadKnownPoints(left_points_path);
-  const KnownPoints right = ReadKnownPoints(right_points_path);
   CalibrationResult result =
       CalibrateFromCorrespondences("points", {left.points3D_in_world}, {left.image_points},
                                    {right.points3D_in_world}, {right.image_points}, options);

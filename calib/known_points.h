@@ -25,7 +25,12 @@ KnownPoints ParseKnownPoints(const std::string& text, const std::string& source)
 /// Reads and parses a points file. @throws std::runtime_error (missing, unreadable, malformed).
 KnownPoints ReadKnownPoints(const std::string& path);
 
-/// DLT for each camera from the two files; the epipolar figure pairs points with equal world
+/// DLT for each camera from the two cameras' points; the epipolar figure pairs points with equal
+/// world coordinates. @throws std::runtime_error with a one-line reason (coplanar, fewer than 6).
+CalibrationResult CalibrateFromKnownPoints(const KnownPoints& left, const KnownPoints& right,
+                                           const DltOptions& options = {});
+
+/// ReadKnownPoints for each file, then the DLT for each camera; the epipolar figure pairs points with equal world
 /// coordinates. The overlays are drawn on white canvases (no images are known).
 /// @throws std::runtime_error with a one-line reason (e.g. coplanar points, fewer than 6).
 CalibrationResult CalibrateFromKnownPoints(const std::string& left_points_path,

@@ -7,7 +7,6 @@
 #include <stdexcept>
 
 #include "robot/link.h"
-#include "robot/modbus_registers.h"
 
 namespace hnnstereo::robot {
 namespace {
@@ -49,7 +48,7 @@ class DryRunLink final : public RobotLink {
     Write({{"type", "cycle"},
            {"request_sequence", admitted.request_sequence},
            // The code the cell sees (docs/robot.md): 2 result ready, or a LinkErrorCode.
-           {"status", admitted.status < 0 ? admitted.status : modbus::kStatusResultReady},
+           {"status", PublishedStatusCode(admitted.status)},
            {"error", admitted.error},
            {"poses", admitted.picks.size()}});
     for (const PickCommand& pick : admitted.picks) {

@@ -27,6 +27,9 @@ std::string RobotFrame::Check() const {
   limits.workspace_max = workspace_max;
   if (auto error = limits.Check(); !error.empty()) return error;
   if (!std::isfinite(rms_mm) || rms_mm < 0.0) return "rms_mm must be a number >= 0";
+  if (max_reach_mm && !(std::isfinite(*max_reach_mm) && *max_reach_mm > 0.0)) {
+    return "max_reach_mm must be a positive number";
+  }
   return {};
 }
 
@@ -86,6 +89,12 @@ RobotFrame LoadRobotFrame(const std::string& path) {
     throw std::invalid_argument("frame file '" + path + "': 'rms_mm' must be a number");
   }
   frame.rms_mm = static_cast<double>(storage["rms_mm"]);
+  if (!storage["max_reach_mm"].empty()) {
+    if (!storage["max_reach_mm"].isReal() && !storage["max_reach_mm"].isInt()) {
+      throw std::invalid_argument("frame file '" + path + "': 'max_reach_mm' must be a number");
+    }
+    frame.max_reach_mm = static_cast<double>(storage["max_reach_mm"]);
+  }
   if (auto error = frame.Check(); !error.empty()) {
     throw std::invalid_argument("frame file '" + path + "': " + error);
   }
@@ -104,6 +113,7 @@ void SaveRobotFrame(const std::string& path, const RobotFrame& frame) {
     cv::eigen2cv(frame.workspace_max, max);
     storage << "robot_from_world" << transform << "workspace_min" << min << "workspace_max" << max
             << "rms_mm" << frame.rms_mm;
+    if (frame.max_reach_mm) storage << "max_reach_mm" << *frame.max_reach_mm;
   });
 }
 
@@ -114,8 +124,11 @@ RobotFrame ThesisRobotFrame() {
   frame.robot_from_world.pretranslate(Eigen::Vector3d(600.0, 400.0, 0.0));
   // Exact half turn (cos pi is not exactly -1 in doubles).
   frame.robot_from_world.linear() = Eigen::Vector3d(-1, -1, 1).asDiagonal();
+  // The rendered table maps to x_r in [320, 680], y_r in [-135, 165] mm; picks with their
+  // approach reach z_r = 200 mm and lie at most 727 mm from the base.
   frame.workspace_min = Eigen::Vector3d(100.0, -300.0, 0.0);
-  frame.workspace_max = Eigen::Vector3d(600.0, 300.0, 450.0);
+  frame.workspace_max = Eigen::Vector3d(720.0, 300.0, 450.0);
+  frame.max_reach_mm = 800.0;
   return frame;
 }
 

@@ -4,7 +4,13 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "robot/modbus_registers.h"
+
 namespace hnnstereo::robot {
+
+int PublishedStatusCode(int cycle_status) {
+  return cycle_status < 0 ? cycle_status : modbus::kStatusResultReady;
+}
 namespace {
 
 // Servers may ask for port 0 (any free port; Describe() then names the port bound).

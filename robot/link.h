@@ -46,6 +46,11 @@ enum LinkErrorCode : int {
   kErrorMalformedRequest = -4, ///< the peer sent something the protocol does not know
 };
 
+/// The status code the cell sees for a cycle with status `cycle_status` (CycleResult::status,
+/// 0 = a result): 2, result ready (modbus::kStatusResultReady), or its negative LinkErrorCode.
+/// The dry-run file, the cycle lines and the web page all show this code (docs/robot.md).
+int PublishedStatusCode(int cycle_status);
+
 /// Limits of the listening transports (modbus-server, vision-server): whatever one client
 /// sends, or does not send, no other client and no cycle waits for it. Each connection has its
 /// own buffers and timers; the server never blocks on one socket (TcpServer, tcp_server.h). The

@@ -3,7 +3,7 @@
 how well it ranks, on Middlebury pairs with ground truth.
 
 For every pair it runs `hnnstereo match` (rectified, the pair's disparity range, the default
-preset) with --report, reads the per-match features of the report (potential_margin,
+preset) with --report --report-matches, reads the per-match features of the report (potential_margin,
 correlation, correlation_margin, surface_residual, and per radius r of 3, 6, 12, 24 px
 neighbours_r and agreement_r = agreeing_r / neighbours_r), labels each match correct when its disparity is within 1 px of
 the ground truth (rounded, as `eval` scores), and fits a logistic regression
@@ -105,7 +105,7 @@ def run_match(binary, left, right, max_disparity, extra, cache=None, name=""):
         report = os.path.join(tmp, "r.json")
         cmd = [binary, "match", "--left", left, "--right", right, "--rectified",
                "--max-disparity", str(max_disparity), "--out", os.path.join(tmp, "m.csv"),
-               "--report", report, "--quiet"] + extra
+               "--report", report, "--report-matches", "--quiet"] + extra
         subprocess.run(cmd, check=True)
         with open(report) as f:
             data = json.load(f)

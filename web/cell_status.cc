@@ -351,7 +351,8 @@ void CellStatusRecorder::RecordCycle(const robot::CycleLog& log, const robot::Ro
   if (log.ack == robot::AckKind::kPeerLost) ++s.peer_lost;
   const double now = UnixNow();
   s.recent_cycles.push_back({log.cycle, log.request_sequence, log.objects, log.published,
-                             log.refused, log.status, log.error, AckName(log.ack), log.sense_ms,
+                             log.refused, robot::PublishedStatusCode(log.status), log.error,
+                             AckName(log.ack), log.sense_ms,
                              log.publish_ms, log.ack_ms, log.cycle_ms, now});
   while (s.recent_cycles.size() > CellState::kRecentCycles) s.recent_cycles.pop_front();
   if (!log.error.empty()) {

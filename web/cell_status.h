@@ -30,7 +30,7 @@ struct CycleRecord {
   int objects = 0;
   int published = 0;
   int refused = 0;
-  int status = 0;
+  int status = 0;  ///< as the cell sees it: 2 result ready, or negative (PublishedStatusCode)
   std::string error;
   std::string ack;  ///< "acknowledged", "ack timeout", "stop", "peer lost"
   double sense_ms = 0.0, publish_ms = 0.0, ack_ms = 0.0, cycle_ms = 0.0;

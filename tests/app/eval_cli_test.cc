@@ -111,8 +111,9 @@ TEST_F(EvalCli, OverridesOfTheFirstPresetAreRecorded) {
 TEST_F(EvalCli, FolderWithoutASetFailsCleanly) {
   fs::create_directories(Path("input_empty"));
   const CliResult result = RunCli("eval --dataset " + Path("input_empty") + " --out " + Path("eval.json"));
-  EXPECT_NE(result.exit_code, 0);
-  EXPECT_NE(result.output.find("hnnstereo: error: no Middlebury set"), std::string::npos) << result.output;
+  EXPECT_EQ(result.exit_code, 2) << result.output;  // a refused setup
+  EXPECT_NE(result.output.find("hnnstereo: error: --dataset: no Middlebury set"), std::string::npos)
+      << result.output;
   EXPECT_FALSE(fs::exists(Path("eval.json")));
 }
 

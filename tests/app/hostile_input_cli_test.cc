@@ -239,7 +239,8 @@ TEST_F(HostileInputCli, PfmWithForgedHeaderOrAbsurdDisparityIsRefused) {
                                    "width=450\nheight=375\nndisp=64\n");
   // Header claims 100000 x 100000 floats (40 GB) on a 20-byte file: no allocation, one line.
   WriteFile("input_set/disp0.pfm", "Pf\n100000 100000\n-1\n");
-  ExpectRefused(RunCli("eval --dataset " + Path("input_set") + " --out " + Path("eval.json")), 1,
+  // Unusable input, found before any work: a refused setup (exit 2).
+  ExpectRefused(RunCli("eval --dataset " + Path("input_set") + " --out " + Path("eval.json")), 2,
                 "is truncated: its header says 100000x100000");
   // A finite but absurd disparity (1e30 px in a 450 px wide image).
   std::string pfm = "Pf\n450 375\n-1\n";
@@ -247,7 +248,7 @@ TEST_F(HostileInputCli, PfmWithForgedHeaderOrAbsurdDisparityIsRefused) {
   values[1234] = 1e30f;
   pfm.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
   WriteFile("input_set/disp0.pfm", pfm);
-  ExpectRefused(RunCli("eval --dataset " + Path("input_set") + " --out " + Path("eval.json")), 1,
+  ExpectRefused(RunCli("eval --dataset " + Path("input_set") + " --out " + Path("eval.json")), 2,
                 "outside [0, 450]");
 }
 
@@ -290,11 +291,11 @@ TEST_F(HostileInputCli, PointsFileAbsurdNumbersAreRefused) {
   WriteFile("input_huge.txt", good + "1e300 0 0 10 10\n");
   ExpectRefused(RunCli("calibrate --points-left " + Path("input_huge.txt") + " --points-right " +
                        Path("input_right.txt") + " --out " + Path("cal.yml")),
-                1, "is beyond +-1e7");
+                2, "is beyond +-1e7");
   WriteFile("input_nan.txt", good + "nan 0 0 10 10\n");
   ExpectRefused(RunCli("calibrate --points-left " + Path("input_nan.txt") + " --points-right " +
                        Path("input_right.txt") + " --out " + Path("cal.yml")),
-                1, "non-finite");
+                2, "non-finite");
 }
 
 TEST_F(HostileInputCli, TargetYmlAbsurdNumbersAreRefused) {
@@ -309,10 +310,10 @@ TEST_F(HostileInputCli, TargetYmlAbsurdNumbersAreRefused) {
                   Path("cal.yml"));
   };
   // rows x cols = 10^24 circles; the cast to int was undefined.
-  ExpectRefused(target("rows: 1e12\ncols: 1e12\n", "0, 0, 0"), 1,
+  ExpectRefused(target("rows: 1e12\ncols: 1e12\n", "0, 0, 0"), 2,
                 "'rows' must be a whole number in [2, 1000]");
-  ExpectRefused(target("rows: 4\ncols: 5\n", "0, 1e300, 0"), 1, "beyond +-1e7 mm");
-  ExpectRefused(target("rows: 4\ncols: 5\n", "0, .nan, 0"), 1, "non-finite");
+  ExpectRefused(target("rows: 4\ncols: 5\n", "0, 1e300, 0"), 2, "beyond +-1e7 mm");
+  ExpectRefused(target("rows: 4\ncols: 5\n", "0, .nan, 0"), 2, "non-finite");
   // A pose matrix header claiming 65536 x 65536 doubles (32 GB before the data was looked at;
   // found by fuzz_target_yml).
   WriteFile("input_target/target.yml",
@@ -322,7 +323,7 @@ TEST_F(HostileInputCli, TargetYmlAbsurdNumbersAreRefused) {
             "  - { left: l.png, right: l.png, origin_mm: [0, 0, 50] }\n");
   ExpectRefused(RunCli("calibrate --target circles --dir " + Path("input_target") + " --out " +
                        Path("cal.yml")),
-                1, "world_from_target claims 65536x65536 elements, more than 16");
+                2, "world_from_target claims 65536x65536 elements, more than 16");
 }
 
 }  // namespace

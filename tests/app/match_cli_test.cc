@@ -66,9 +66,63 @@ TEST_F(MatchCli, WritesTheContractFiles) {
   }
   EXPECT_EQ(report["n_matches"].get<int>(), rows);
   EXPECT_LT(report["energy_final"].get<double>(), report["energy_initial"].get<double>());
+  // The matches are in MATCHES.csv, not repeated in the report (a full-Teddy report was 6 MB).
+  EXPECT_FALSE(report.contains("matches"));
+  EXPECT_LT(fs::file_size(Path("r.json")), 16u * 1024u);
   const cv::Mat overlay = cv::imread(Path("o.png"));
   EXPECT_EQ(overlay.cols, 900);
   EXPECT_EQ(overlay.rows, 375 + 56) << "the images, then the legend";
+}
+
+// --report-matches: every match with its confidence features, for fitting the confidence.
+TEST_F(MatchCli, ReportListsTheMatchesWhenAsked) {
+  const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --engine cpu --report " +
+                                        Path("r.json") + " --report-matches"));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(Path("r.json")));
+  ASSERT_TRUE(report.contains("matches"));
+  EXPECT_EQ(report["matches"]["columns"][5], "confidence");
+  EXPECT_EQ(report["matches"]["rows"].size(), report["n_matches"].get<std::size_t>());
+}
+
+// --ply: the matches triangulated in the calibration's world frame. With a Middlebury calib.txt
+// (f = 1000 px, principal point (200, 180), baseline 100 mm) a match of disparity d lies at
+// z = f b / d, x = (x_l - 200) z / f in the left camera's frame. Without --calib: refused.
+TEST_F(MatchCli, PlyHoldsTheTriangulatedMatches) {
+  std::ofstream(Path("input_calib.txt"))
+      << "cam0=[1000 0 200; 0 1000 180; 0 0 1]\ncam1=[1000 0 200; 0 1000 180; 0 0 1]\n"
+         "doffs=0\nbaseline=100\nwidth=450\nheight=375\n";
+  const CliResult result = RunCli(Teddy("--calib " + Path("input_calib.txt") +
+                                        " --max-disparity 64 --engine cpu --ply " + Path("p.ply")));
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find(Path("p.ply")), std::string::npos) << "not among the files written";
+  std::ifstream ply(Path("p.ply"));
+  std::string line;
+  std::size_t vertices = 0;
+  while (std::getline(ply, line) && line != "end_header") {
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoul(line.substr(15));
+  }
+  std::ifstream csv(Path("m.csv"));
+  std::getline(csv, line);  // header
+  std::size_t checked = 0;
+  while (std::getline(csv, line)) {
+    double xl = 0, yl = 0, xr = 0, yr = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &xl, &yl, &xr, &yr), 4) << line;
+    if (!(xl - xr > 0.0)) continue;  // at infinity or behind: no point
+    double x = 0, y = 0, z = 0;
+    ASSERT_TRUE(ply >> x >> y >> z) << "fewer points than matches with d > 0";
+    ply.ignore(64, '\n');
+    const double expected_z = 1000.0 * 100.0 / (xl - xr);
+    EXPECT_NEAR(z, expected_z, 1e-4 * expected_z) << line;
+    EXPECT_NEAR(x, (xl - 200.0) * expected_z / 1000.0, 1e-4 * expected_z + 1e-3) << line;
+    ++checked;
+  }
+  EXPECT_EQ(checked, vertices);
+  EXPECT_GT(checked, 300u);
+  fs::remove(Path("m.csv"));
+  fs::remove(Path("p.ply"));
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity 64 --ply " + Path("q.ply"))),
+                     "--ply needs --calib");
 }
 
 // --save-network: the network as solved, which a replay solves to the same state (the cpu

@@ -168,7 +168,7 @@ TEST_F(RobotCli, ServeRefusesBadInputBeforeOpeningTheLink) {
   ExpectCleanFailure(RunCli("serve" + replay + " --frame " + Path("nope.yml") + dry),
                      "frame file", {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve --replay " + Path("missing.json") + " --frame " + frame + dry),
-                     "cannot read", {"picks.jsonl"});
+                     "--replay: cannot read", {"picks.jsonl"});
   ExpectCleanFailure(RunCli("serve --frame " + frame + dry), "serve needs --left", {"picks.jsonl"});
   ExpectCleanFailure(
       RunCli("serve" + replay + " --left a.png --frame " + frame + dry), "--replay replaces",
@@ -190,6 +190,42 @@ TEST_F(RobotCli, SendWritesACellCommand) {
   ExpectCleanFailure(RunCli("robot send --command jump --frame " + frame + " --robot dryrun:" +
                             Path("jump.jsonl")),
                      "unknown --command", {"jump.jsonl"});
+}
+
+// The default rendered cell and the thesis frame agree: every part of `render --seed 7` (8
+// parts, the tallest 131 mm) is sent, none refused as outside the workspace or beyond reach.
+TEST_F(RobotCli, ServeSendsEveryPartOfTheRenderedCellThroughTheThesisFrame) {
+  ASSERT_EQ(RunCli("render --seed 7 --quiet --out " + Path("s7")).exit_code, 0);
+  ASSERT_EQ(RunCli("robot thesis-frame --quiet --out " + Path("frame.yml")).exit_code, 0);
+  const CliResult served =
+      RunCli("serve --left " + Path("s7/left.png") + " --right " + Path("s7/right.png") +
+             " --calib " + Path("s7/calib.yml") + " --frame " + Path("frame.yml") +
+             " --robot dryrun:" + Path("picks.jsonl") + " --cycles 1");
+  ASSERT_EQ(served.exit_code, 0) << served.output;
+  EXPECT_NE(served.output.find("8 parts, 8 sent, 0 refused"), std::string::npos) << served.output;
+  EXPECT_EQ(served.output.find("refused:"), std::string::npos) << served.output;
+  int picks = 0;
+  for (const nlohmann::json& line : ReadJsonLines(Path("picks.jsonl"))) {
+    if (line["type"] == "pick") ++picks;
+    if (line["type"] == "cycle") EXPECT_EQ(line["status"], 2) << line;
+  }
+  EXPECT_EQ(picks, 8) << served.output;
+}
+
+// No cell command carries a pose, so none needs FRAME.yml; --command stays required.
+TEST_F(RobotCli, SendNeedsNoFrame) {
+  for (const std::string command : {"home", "stop"}) {
+    const CliResult sent =
+        RunCli("robot send --command " + command + " --robot dryrun:" + Path(command + ".jsonl"));
+    ASSERT_EQ(sent.exit_code, 0) << sent.output;
+    const auto lines = ReadJsonLines(Path(command + ".jsonl"));
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_EQ(lines[0]["command"], command);
+  }
+  const CliResult no_command = RunCli("robot send --robot dryrun:" + Path("none.jsonl"));
+  EXPECT_EQ(no_command.exit_code, 2) << no_command.output;
+  EXPECT_NE(no_command.output.find("--command"), std::string::npos) << no_command.output;
+  EXPECT_FALSE(std::filesystem::exists(Path("none.jsonl")));
 }
 
 TEST_F(RobotCli, PickSendsTheSensedPartsThroughTheLink) {

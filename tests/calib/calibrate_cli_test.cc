@@ -97,9 +97,10 @@ TEST_F(CalibrateCli, CircleTargetDirectory) {
 TEST_F(CalibrateCli, ErrorsAreOneLineAndWriteNothing) {
   const std::string dir = testing::TemporaryDirectory("cli_errors");
   const std::string out = dir + "/cal.yml";
+  // An input that cannot be used, found before any work: a refused setup, exit 2.
   EXPECT_EQ(RunHnnstereo("calibrate --target circles --dir " + dir + "/missing --out " + out,
                          dir + "/log.txt"),
-            1);
+            2);
   const std::string log = ReadText(dir + "/log.txt");
   EXPECT_EQ(log.rfind("hnnstereo: error: ", 0), 0u) << log;
   EXPECT_NE(log.find("does not exist"), std::string::npos) << log;
@@ -109,7 +110,7 @@ TEST_F(CalibrateCli, ErrorsAreOneLineAndWriteNothing) {
   EXPECT_EQ(RunHnnstereo("calibrate --points-left " + dir + "/bad.txt --points-right " + dir +
                              "/bad.txt --out " + out,
                          dir + "/log.txt"),
-            1);
+            2);
   EXPECT_NE(ReadText(dir + "/log.txt").find("line 2"), std::string::npos);
   EXPECT_FALSE(fs::exists(out));
   // Nothing but temporary-free output folder.

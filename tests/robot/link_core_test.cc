@@ -150,6 +150,33 @@ TEST_F(FrameFile, RoundTripsAndRefusesBrokenFrames) {
   RobotFrame inverted_box = frame;
   inverted_box.workspace_min.z() = 500;
   EXPECT_NE(inverted_box.Check(), "");
+  // The optional reach: absent stays absent, present reads back, non-positive is refused.
+  EXPECT_FALSE(LoadRobotFrame(Path("frame.yml")).max_reach_mm.has_value());
+  RobotFrame reaching = frame;
+  reaching.max_reach_mm = 750.0;
+  SaveRobotFrame(Path("reach.yml"), reaching);
+  EXPECT_EQ(LoadRobotFrame(Path("reach.yml")).max_reach_mm, 750.0);
+  reaching.max_reach_mm = -1.0;
+  EXPECT_NE(reaching.Check(), "");
+}
+
+// The thesis frame covers the rendered default cell's table (vision/synth/scene_render.h: parts
+// within (100, 385) +- (130, 100) mm, footprints up to 49 mm from their centre, 150 mm tall)
+// with the default 50 mm approach and retreat: every such pose is inside its box and reach.
+TEST(ThesisRobotFrame, CoversTheRenderedTable) {
+  const RobotFrame frame = ThesisRobotFrame();
+  ASSERT_TRUE(frame.max_reach_mm.has_value());
+  for (const double x : {100.0 - 130.0 - 49.0, 100.0 + 130.0 + 49.0}) {
+    for (const double y : {385.0 - 100.0 - 49.0, 385.0 + 100.0 + 49.0}) {
+      for (const double z : {10.0, 150.0 + 50.0}) {
+        const Eigen::Vector3d robot = frame.robot_from_world * Eigen::Vector3d(x, y, z);
+        EXPECT_TRUE((robot.array() >= frame.workspace_min.array()).all() &&
+                    (robot.array() <= frame.workspace_max.array()).all())
+            << robot.transpose();
+        EXPECT_LE(robot.norm(), *frame.max_reach_mm) << robot.transpose();
+      }
+    }
+  }
 }
 
 // A transport that records what reaches it and plays back scripted triggers and acknowledges.

@@ -29,5 +29,19 @@ TEST(DistortPoints, InvertsOpenCvUndistortPoints) {
   }
 }
 
+TEST(UndistortPoints, InvertsDistortPoints) {
+  Eigen::Matrix3d K;
+  K << 530, 0, 320, 0, 530, 240, 0, 0, 1;
+  const std::vector<double> D = {-0.28, 0.09, 0.001, -0.0005, 0.0};
+  const std::vector<Eigen::Vector2f> undistorted = {{20, 30}, {320, 240}, {600, 450}, {100, 400}};
+  const auto there = DistortPoints(undistorted, K, D);
+  const auto back = UndistortPoints(there, K, D);
+  ASSERT_EQ(back.size(), undistorted.size());
+  for (std::size_t t = 0; t < back.size(); ++t) {
+    EXPECT_NEAR((back[t] - undistorted[t]).norm(), 0.0, 0.05) << t;
+  }
+  EXPECT_TRUE(UndistortPoints({}, K, D).empty());
+}
+
 }  // namespace
 }  // namespace hnnstereo::vision

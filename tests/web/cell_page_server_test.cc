@@ -248,6 +248,12 @@ TEST(CellStatusRecorder, CountsCyclesKeepsTheLast100AndMarksEachPick) {
   ASSERT_EQ(cycles.size(), 100u);
   EXPECT_EQ(cycles.front()["cycle"], 31);
   EXPECT_EQ(cycles.back()["cycle"], 130);
+  // The code the cell sees, as the link and the dry-run lines show it: 2 result ready, or the
+  // negative error (never the loop's internal 0).
+  EXPECT_EQ(cycles.front()["status"], robot::PublishedStatusCode(0));
+  EXPECT_EQ(cycles.front()["status"], 2);
+  EXPECT_EQ(cycles[120 - 31]["status"], robot::kErrorSensingFailed);
+  EXPECT_EQ(status["last_cycle"]["status"], 2);
 }
 
 // A client that asks for the overlay and never reads the answer holds one HTTP thread until the

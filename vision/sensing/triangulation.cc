@@ -3,6 +3,8 @@
 #include <Eigen/SVD>
 #include <cmath>
 
+#include "vision/stereo/lens_distortion.h"
+
 namespace hnnstereo::vision {
 
 std::optional<TriangulatedPoint> TriangulateLinear(const Eigen::Matrix<double, 3, 4>& P1,
@@ -28,6 +30,38 @@ std::optional<TriangulatedPoint> TriangulateLinear(const Eigen::Matrix<double, 3
   const double e2 = (x2.hnormalized() - right_point).squaredNorm();
   result.reprojection_error_px = std::sqrt(0.5 * (e1 + e2));
   return result;
+}
+
+std::vector<Eigen::Vector3d> MatchesInWorld(const calib::StereoCalibration& calibration,
+                                            const std::vector<StereoMatch>& matches,
+                                            double max_reprojection_error_px,
+                                            std::vector<int>* match_of_point) {
+  std::vector<Eigen::Vector2f> lefts, rights;
+  lefts.reserve(matches.size());
+  rights.reserve(matches.size());
+  for (const StereoMatch& match : matches) {
+    lefts.push_back(match.left);
+    rights.push_back(match.right);
+  }
+  const calib::Intrinsics* lens = calibration.intrinsics && !calibration.intrinsics->D1.empty()
+                                      ? &*calibration.intrinsics
+                                      : nullptr;
+  if (lens) {
+    lefts = UndistortPoints(lefts, lens->K1, lens->D1);
+    rights = UndistortPoints(rights, lens->K2, lens->D2);
+  }
+  std::vector<Eigen::Vector3d> points;
+  if (match_of_point) match_of_point->clear();
+  for (std::size_t m = 0; m < matches.size(); ++m) {
+    const auto point = TriangulateLinear(calibration.P1, calibration.P2, lefts[m].cast<double>(),
+                                         rights[m].cast<double>());
+    if (!point || !point->in_front || !(point->reprojection_error_px <= max_reprojection_error_px)) {
+      continue;
+    }
+    points.push_back(point->point_in_world);
+    if (match_of_point) match_of_point->push_back(static_cast<int>(m));
+  }
+  return points;
 }
 
 }  // namespace hnnstereo::vision

@@ -44,4 +44,19 @@ std::vector<Eigen::Vector2f> DistortPoints(const std::vector<Eigen::Vector2f>& u
   return out;
 }
 
+std::vector<Eigen::Vector2f> UndistortPoints(const std::vector<Eigen::Vector2f>& distorted,
+                                             const Eigen::Matrix3d& K,
+                                             const std::vector<double>& distortion) {
+  if (distorted.empty()) return {};
+  std::vector<cv::Point2d> pixels, undistorted;
+  pixels.reserve(distorted.size());
+  for (const auto& p : distorted) pixels.emplace_back(p.x(), p.y());
+  cv::undistortPoints(pixels, undistorted, CameraMatrix(K), cv::Mat(distortion, true),
+                      cv::noArray(), CameraMatrix(K));
+  std::vector<Eigen::Vector2f> out;
+  out.reserve(undistorted.size());
+  for (const auto& p : undistorted) out.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  return out;
+}
+
 }  // namespace hnnstereo::vision

@@ -17,4 +17,10 @@ std::vector<Eigen::Vector2f> DistortPoints(const std::vector<Eigen::Vector2f>& u
                                            const Eigen::Matrix3d& K,
                                            const std::vector<double>& distortion);
 
+/// Distorted pixels of the original image to undistorted pixels (camera matrix K): the inverse
+/// of DistortPoints (cv::undistortPoints' iterative solution).
+std::vector<Eigen::Vector2f> UndistortPoints(const std::vector<Eigen::Vector2f>& distorted,
+                                             const Eigen::Matrix3d& K,
+                                             const std::vector<double>& distortion);
+
 }  // namespace hnnstereo::vision

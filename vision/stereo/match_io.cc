@@ -104,7 +104,11 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                                 {"agreement_slope", kAgreementSlope},
                                 {"surface_radius_px", kSurfaceRadiusPx},
                                 {"potential_margin_cap", c.potential_margin_cap}};
-  // Per-match output: one row per match, columns named once (compact for ~10^5 matches).
+  return json;
+}
+
+nlohmann::json MatchFeaturesJson(const MatchReport& report) {
+  // One row per match, columns named once (compact for ~10^5 matches).
   nlohmann::json rows = nlohmann::json::array();
   for (const StereoMatch& m : report.matches) {
     rows.push_back({m.left.x(), m.left.y(), m.right.x(), m.right.y(), m.activation, m.confidence,
@@ -112,13 +116,11 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                     m.agreeing[0], m.neighbours[1], m.agreeing[1], m.neighbours[2], m.agreeing[2],
                     m.neighbours[3], m.agreeing[3], m.surface_residual});
   }
-  json["matches"] = {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence",
-                                  "potential_margin", "correlation", "correlation_margin",
-                                  "neighbours_3", "agreeing_3", "neighbours_6", "agreeing_6",
-                                  "neighbours_12", "agreeing_12", "neighbours_24", "agreeing_24",
-                                  "surface_residual"}},
-                     {"rows", std::move(rows)}};
-  return json;
+  return {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence", "potential_margin",
+                       "correlation", "correlation_margin", "neighbours_3", "agreeing_3",
+                       "neighbours_6", "agreeing_6", "neighbours_12", "agreeing_12",
+                       "neighbours_24", "agreeing_24", "surface_residual"}},
+          {"rows", std::move(rows)}};
 }
 
 cv::Mat SparseDisparityMap(const MatchReport& report, int rows, int cols) {

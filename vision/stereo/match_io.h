@@ -12,8 +12,13 @@ namespace hnnstereo::vision {
 /// "xl,yl,xr,yr,activation,confidence" then one row per match (0-based pixel coordinates).
 std::string MatchesCsv(const MatchReport& report);
 
-/// The REPORT.json object: engine, device, sizes, iterations, energies, timing_ms and more.
+/// The REPORT.json object: engine, device, sizes, iterations, energies, timing_ms and the
+/// options; not the matches (MATCHES.csv holds them).
 nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& options);
+
+/// Every match with the features its confidence is computed from (`match --report-matches`,
+/// read by scripts/fit_confidence.py): {"columns": [names], "rows": [[values], ...]}.
+nlohmann::json MatchFeaturesJson(const MatchReport& report);
 
 /// The data term's settings as REPORT.json and EVAL.json record them: {"kind": "census",
 /// "census_window", "aggregation_window", "support_gamma"} or {"kind": "zncc", "zncc_window"}.

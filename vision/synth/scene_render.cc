@@ -547,8 +547,11 @@ double SceneBrightness(const SceneRenderOptions& options) {
 
 namespace {
 
-std::vector<SceneObject> PlaceObjects(const SceneRenderOptions& options,
-                                      const calib::StereoCalibration& cameras) {
+// The parts of the scene, or nullopt when part *failed_part (0-based) of an asked-for count
+// found no place in 4000 tries.
+std::optional<std::vector<SceneObject>> TryPlaceObjects(const SceneRenderOptions& options,
+                                                        const calib::StereoCalibration& cameras,
+                                                        int* failed_part) {
   std::vector<SceneObject> objects;
   std::mt19937_64 generator(Mix(options.seed));
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -614,15 +617,41 @@ std::vector<SceneObject> PlaceObjects(const SceneRenderOptions& options,
     // the ninth found no place in 4000 tries). A count the caller asked for is a contract.
     if (!placed && options.num_objects == 0) break;
     if (!placed) {
-      throw std::invalid_argument("cannot place part " + std::to_string(k + 1) + " of " +
-                                  std::to_string(count) +
-                                  " in the work area (too many parts or too large a gap)");
+      *failed_part = k;
+      return std::nullopt;
     }
   }
   std::stable_sort(objects.begin(), objects.end(), [](const SceneObject& a, const SceneObject& b) {
     return a.height_mm() > b.height_mm();
   });
   return objects;
+}
+
+// TryPlaceObjects; when an asked-for count does not fit and options.shrink_to_fit, again with
+// the top-face sides and the gap scaled by kShrinkStep per try (a scene that fits at the sizes
+// asked is never changed). *scale receives the factor used.
+std::vector<SceneObject> PlaceObjects(const SceneRenderOptions& options,
+                                      const calib::StereoCalibration& cameras,
+                                      double* scale = nullptr) {
+  constexpr double kShrinkStep = 0.85;
+  constexpr int kShrinkTries = 8;  // down to 0.85^8 = 0.27 of the sizes asked
+  SceneRenderOptions scaled = options;
+  double factor = 1.0;
+  int failed_part = 0;
+  for (int shrink = 0;; ++shrink) {
+    if (auto objects = TryPlaceObjects(scaled, cameras, &failed_part)) {
+      if (scale != nullptr) *scale = factor;
+      return *std::move(objects);
+    }
+    if (!options.shrink_to_fit || shrink == kShrinkTries) break;
+    factor *= kShrinkStep;
+    scaled.min_side_mm = options.min_side_mm * factor;
+    scaled.max_side_mm = options.max_side_mm * factor;
+    scaled.min_gap_mm = options.min_gap_mm * factor;
+  }
+  throw std::invalid_argument("cannot place part " + std::to_string(failed_part + 1) + " of " +
+                              std::to_string(options.num_objects) +
+                              " in the work area (too many parts for --size-range and --min-gap)");
 }
 
 }  // namespace
@@ -641,7 +670,7 @@ RenderedScene RenderScene(const SceneRenderOptions& options) {
   RenderedScene scene;
   scene.seed = options.seed;
   scene.cameras = PickCellCameras(options.cameras);
-  scene.objects = PlaceObjects(options, scene.cameras);
+  scene.objects = PlaceObjects(options, scene.cameras, &scene.size_scale);
   scene.left = RenderView(scene.cameras.P1, scene.objects, options, Mix(options.seed * 2 + 1));
   scene.right = RenderView(scene.cameras.P2, scene.objects, options, Mix(options.seed * 2 + 2));
   return scene;

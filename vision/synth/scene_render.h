@@ -93,6 +93,11 @@ struct SceneRenderOptions {
   /// Smallest gap between footprints (mm); 0 lets parts touch. 15 mm: the default grid
   /// clustering keeps parts of similar height apart when they stand more than 12.7 mm apart.
   double min_gap_mm = 15.0;
+  /// true: an asked-for num_objects that does not fit at these top-face sizes and gap is placed
+  /// with the sides and the gap scaled down (x0.85 per try, down to 0.27; size_scale in
+  /// RenderedScene), so that every count of `render --objects` (1-30) renders at the default
+  /// sizes; a scene that fits as asked is never changed. false: such a count is refused.
+  bool shrink_to_fit = false;
   /// Every part's top face must be seen unoccluded by both cameras at this fraction of samples.
   double min_top_visibility = 0.9;
   int image_margin_px = 8;              ///< every part lies this far inside both images
@@ -119,6 +124,8 @@ struct RenderedScene {
   calib::StereoCalibration cameras;       ///< the true cameras (P1, P2, F, C1, C2)
   std::vector<SceneObject> objects;       ///< tallest first
   std::uint64_t seed = 0;
+  /// Top-face sides and gap as drawn / as asked: below 1 when shrink_to_fit made room.
+  double size_scale = 1.0;
 };
 
 /// The illumination gain of scene `options.seed` in [min_brightness, max_brightness].
