@@ -193,13 +193,17 @@ def _check_outputs(pairs, out_dir, other_inputs=()):
 def _settings(preset, engine, options):
     """The match settings as the Matcher takes them, checked by building one (one device open):
     an unknown option, preset or engine is refused here, before any work."""
-    if "max_disparity" in options or "max-disparity" in options:
-        raise BatchInputError("max_disparity is per pair: a PAIRS.csv column, not a batch option")
-    settings = {"preset": str(preset), "engine": str(engine), "options": dict(options)}
     try:
-        _hnnstereo.Matcher(settings["preset"], settings["engine"], **settings["options"])
+        # As the CLI names and spells them ({"top-k": "8"}): top_k=8 and --top-k 8 are one
+        # setting, and report.json records it as JSON keeps it (resume compares them).
+        texts = _hnnstereo._overrides(options)
+        if "max-disparity" in texts:
+            raise BatchInputError("max_disparity is per pair: a PAIRS.csv column, not a batch "
+                                  "option")
+        settings = {"preset": str(preset), "engine": str(engine), "options": texts}
+        _hnnstereo.Matcher(settings["preset"], settings["engine"], **texts)
     except (ValueError, RuntimeError) as error:
-        raise BatchInputError(str(error)) from None
+        raise BatchInputError(" ".join(str(error).split())) from None
     return settings
 
 
@@ -210,8 +214,7 @@ _worker_matchers = {}  # settings key -> Matcher, kept for the worker process's 
 
 
 def _matcher(settings, options):
-    key = (settings["preset"], settings["engine"], tuple(sorted(
-        (name, str(value)) for name, value in options.items())))
+    key = (settings["preset"], settings["engine"], tuple(sorted(options.items())))
     matcher = _worker_matchers.get(key)
     if matcher is None:
         matcher = _hnnstereo.Matcher(settings["preset"], settings["engine"], **options)
@@ -254,7 +257,8 @@ def _match_pair_files(pair, settings):
         images.append(image)
     options = dict(settings["options"])
     if pair.calib is not None:  # as hnnstereo.match: max_disparity is a Matcher option then
-        options["max_disparity"] = pair.max_disparity if pair.max_disparity is not None else 64
+        options["max-disparity"] = str(pair.max_disparity if pair.max_disparity is not None
+                                      else 64.0)
         result = _matcher(settings, options).match(*images, calib=pair.calib)
     else:
         result = _matcher(settings, options).match(*images, max_disparity=pair.max_disparity)

@@ -150,6 +150,9 @@ def test_a_rerun_skips_the_pairs_done(pairs_csv, expected, client, tmp_path):
     # Other settings: every pair is matched again.
     report = batch.match_pairs(pairs_csv, out_dir, client, top_k=4)
     assert (report.done, report.skipped) == (N_PAIRS, 0)
+    # The command's --top-k 4 is that setting: all skipped (and no cluster started for none).
+    assert batch.main(["--pairs", str(pairs_csv), "--out", str(out_dir), "--top-k", "4"]) == 0
+    assert {row["status"] for row in manifest(out_dir)} == {"skipped"}
 
 
 def test_a_failed_pair_is_retried_once_and_reported(pairs_csv, client, tmp_path):
