@@ -58,7 +58,7 @@ def plain_loop(pairs, out_dir):
         with open(os.path.join(folder, "matches.csv"), "w") as f:
             f.write(batch.matches_csv(result.matches))
         with open(os.path.join(folder, "report.json"), "w") as f:
-            json.dump(result.report, f, indent=2)
+            json.dump(result.report, f, separators=(",", ":"))  # as hnnstereo.batch writes it
     return time.perf_counter() - start
 
 
@@ -112,9 +112,9 @@ def measure(pairs_csv, clusters, out_root, repeats, log):
                    "seconds": seconds, "pairs_per_second": len(pairs) / seconds,
                    "task_seconds": task_seconds, "load1": os.getloadavg()[0]}
             runs.append(run)
-            print(f"{os.path.basename(os.path.dirname(pairs_csv))} {name}: {len(pairs)} pairs in "
-                  f"{seconds:.1f} s = {run['pairs_per_second']:.2f} pairs/s (load {run['load1']:.1f})",
-                  file=log, flush=True)
+            print(f"{os.path.basename(os.path.dirname(pairs_csv))} {name}: {len(pairs)} pairs "
+                  f"in {seconds:.1f} s = {run['pairs_per_second']:.2f} pairs/s "
+                  f"(load {run['load1']:.1f})", file=log, flush=True)
     return runs
 
 
