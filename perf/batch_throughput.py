@@ -83,10 +83,20 @@ def task_overhead(client, n_tasks=2000):
     return (time.perf_counter() - start) / n_tasks
 
 
-def start_cluster(n_workers):
+def cluster_name(spec):
+    n_workers, _, variable = spec.partition(":")
+    return f"{n_workers} workers" + (f" {variable}" if variable else "")
+
+
+def start_cluster(spec):
+    """spec: "N" workers, or "N:NAME=VALUE" with an environment variable for the workers."""
+    n_workers, _, variable = spec.partition(":")
+    env = dict([variable.split("=", 1)]) if variable else None
     start = time.perf_counter()
-    cluster = distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=40)
+    cluster = distributed.LocalCluster(n_workers=int(n_workers), threads_per_worker=1, env=env,
+                                       processes=True,
+                                       dashboard_address=None, silence_logs=40,
+                                       scheduler_kwargs={"dashboard_address": ":0"})
     client = distributed.Client(cluster)
     return cluster, client, time.perf_counter() - start
 
@@ -95,18 +105,18 @@ def measure(pairs_csv, clusters, out_root, repeats, log):
     pairs = batch.read_pairs(pairs_csv)
     warm = pairs[:4]
     plain_loop(warm[:1], os.path.join(out_root, "warm-loop"))
-    for n_workers, (_, client, _) in clusters.items():
-        batch.match_pairs(warm, os.path.join(out_root, f"warm-{n_workers}"), client)
+    for index, (_, client, _) in enumerate(clusters.values()):
+        batch.match_pairs(warm, os.path.join(out_root, f"warm-{index}"), client)
     runs = []
     for repeat in range(repeats):
-        for name in ["loop"] + [f"{n} workers" for n in clusters]:
+        for name in ["loop"] + list(clusters):
             out_dir = os.path.join(out_root, "run")
             shutil.rmtree(out_dir, ignore_errors=True)
             task_seconds = None
             if name == "loop":
                 seconds = plain_loop(pairs, out_dir)
             else:
-                seconds, task_seconds = on_cluster(clusters[int(name.split()[0])][1], pairs,
+                seconds, task_seconds = on_cluster(clusters[name][1], pairs,
                                                    out_dir)
             run = {"pairs_csv": pairs_csv, "config": name, "repeat": repeat, "pairs": len(pairs),
                    "seconds": seconds, "pairs_per_second": len(pairs) / seconds,
@@ -125,7 +135,9 @@ def main():
     parser.add_argument("--pairs", action="append", help="a PAIRS.csv (repeatable)")
     parser.add_argument("--out", help="scratch folder for the results")
     parser.add_argument("--repeats", type=int, default=2, help="turns of each configuration")
-    parser.add_argument("--workers", default="1,2", help="cluster sizes, comma-separated")
+    parser.add_argument("--workers", default="1,2",
+                        help="clusters, comma-separated: N workers, or N:NAME=VALUE with an "
+                             "environment variable for its workers (2:POCL_MAX_PTHREAD_COUNT=1)")
     parser.add_argument("--json", help="write every measurement here")
     args = parser.parse_args()
     if args.teddy_crops:
@@ -133,11 +145,11 @@ def main():
     if not args.pairs or not args.out:
         parser.error("--pairs and --out are needed")
 
-    clusters = {int(n): start_cluster(int(n)) for n in args.workers.split(",")}
-    for n, (_, _, seconds) in clusters.items():
-        print(f"cluster of {n} workers started in {seconds:.1f} s", flush=True)
-    overhead = task_overhead(clusters[max(clusters)][1])
-    print(f"scheduler: {overhead * 1e3:.2f} ms a task of no work ({max(clusters)} workers)")
+    clusters = {cluster_name(spec): start_cluster(spec) for spec in args.workers.split(",")}
+    for name, (_, _, seconds) in clusters.items():
+        print(f"cluster of {name} started in {seconds:.1f} s", flush=True)
+    overhead = task_overhead(list(clusters.values())[-1][1])
+    print(f"scheduler: {overhead * 1e3:.2f} ms a task of no work ({list(clusters)[-1]})")
     runs = []
     try:
         for pairs_csv in args.pairs:
