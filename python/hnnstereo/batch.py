@@ -498,9 +498,11 @@ def _run(pairs, todo, out_dir, client, workers, settings, rows, progress_stream)
         if client is None and todo:
             from distributed import Client, LocalCluster
 
+            # No dashboard; the scheduler's own HTTP routes on a free port (the default 8787
+            # may be another cluster's).
             cluster = LocalCluster(n_workers=workers or _os.cpu_count() or 1,
-                                   threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
+                                   threads_per_worker=1, processes=True, dashboard_address=None,
+                                   scheduler_kwargs={"dashboard_address": ":0"}, silence_logs=40)
             client = own_client = Client(cluster)
         progress = Progress(len(todo), progress_stream)
         if todo:

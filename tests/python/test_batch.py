@@ -62,7 +62,8 @@ def expected(pairs_csv):
 @pytest.fixture(scope="module")
 def client():
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=40)
+                                       dashboard_address=None, silence_logs=40,
+                                       scheduler_kwargs={"dashboard_address": ":0"})
     with distributed.Client(cluster) as dask_client:
         yield dask_client
     cluster.close()
