@@ -150,7 +150,7 @@ def read_pairs(path):
     """PAIRS.csv -> checked Pairs (paths relative to its folder). Raises BatchInputError."""
     path = _os.fspath(path)
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's BOM too
             reader = _csv.DictReader(f)
             header = [name.strip() for name in (reader.fieldnames or [])]
             reader.fieldnames = header
@@ -476,8 +476,18 @@ def match_pairs(pairs, out_dir, client=None, *, workers=None, preset="hnn-defaul
         raise BatchInputError("workers is for the local cluster: a given client has its own")
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise BatchInputError(f"workers must be an integer >= 1 (got {workers!r})")
-    _os.makedirs(out_dir, exist_ok=True)
+    try:
+        rows, todo = _plan(pairs, out_dir, settings)
+    except OSError as error:
+        raise BatchInputError(f"cannot write to --out {out_dir}: "
+                              f"{error.strerror or error}") from None
+    return _run(todo, out_dir, client, workers, settings, rows, progress)
 
+
+def _plan(pairs, out_dir, settings):
+    """Creates out_dir, marks the pairs done by an earlier run `skipped`, removes the others'
+    stale outputs and writes the first manifest -> (rows by id, the pairs to match)."""
+    _os.makedirs(out_dir, exist_ok=True)
     rows, todo = {}, []
     for pair in pairs:
         done_before = _already_done(pair, out_dir, settings)
@@ -488,10 +498,10 @@ def match_pairs(pairs, out_dir, client=None, *, workers=None, preset="hnn-defaul
             _remove_stale(pair, out_dir)
             todo.append(pair)
     _write_manifest(out_dir, rows.values())
-    return _run(pairs, todo, out_dir, client, workers, settings, rows, progress)
+    return rows, todo
 
 
-def _run(pairs, todo, out_dir, client, workers, settings, rows, progress_stream):
+def _run(todo, out_dir, client, workers, settings, rows, progress_stream):
     start = _time.perf_counter()
     cluster = own_client = None
     try:

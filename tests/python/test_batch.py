@@ -183,6 +183,7 @@ def test_the_command_shows_progress_and_a_summary(pairs_csv, expected, tmp_path)
     done = run_command("--pairs", small, "--out", tmp_path / "out", "--workers", "2")
     assert done.returncode == 0, done.stderr
     assert "3/3 pairs, " in done.stderr and "pairs/s, ETA" in done.stderr
+    assert "Warning" not in done.stderr, done.stderr
     assert "3 matched, 0 skipped (done before), 0 failed of 3 pairs" in done.stdout
     for pair_id in ("p00", "p01", "p02"):
         assert (tmp_path / "out" / pair_id / "matches.csv").read_text() == expected[pair_id]
@@ -239,6 +240,12 @@ def test_bad_pairs_csv_is_refused_before_any_work(pairs_csv, tmp_path, capsys, t
 
 def test_a_missing_pairs_csv_is_refused(tmp_path, capsys):
     assert "cannot read" in refused(capsys, "--pairs", tmp_path / "nope.csv", "--out", tmp_path)
+
+
+def test_an_unwritable_out_is_refused(pairs_csv, tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    assert "cannot write to --out" in refused(capsys, "--pairs", pairs_csv, "--out",
+                                              tmp_path / "file" / "out")
 
 
 def test_outputs_never_overwrite_an_input(pairs_csv, tmp_path, capsys):
