@@ -202,8 +202,9 @@ def _settings(preset, engine, options):
         if "max-disparity" in texts:
             raise BatchInputError("max_disparity is per pair: a PAIRS.csv column, not a batch "
                                   "option")
-        settings = {"preset": str(preset), "engine": str(engine), "options": texts}
-        _hnnstereo.Matcher(settings["preset"], settings["engine"], **texts)
+        settings = {"preset": str(preset), "engine": None if engine is None else str(engine),
+                    "options": texts}
+        _new_matcher(settings, texts)
     except (ValueError, RuntimeError) as error:
         raise BatchInputError(" ".join(str(error).split())) from None
     return settings
@@ -215,11 +216,17 @@ def _settings(preset, engine, options):
 _worker_matchers = {}  # settings key -> Matcher, kept for the worker process's life
 
 
+def _new_matcher(settings, options):
+    """engine None: hnnstereo.Matcher's own default, as hnnstereo.match has it."""
+    engine = {} if settings["engine"] is None else {"engine": settings["engine"]}
+    return _hnnstereo.Matcher(settings["preset"], **engine, **options)
+
+
 def _matcher(settings, options):
     key = (settings["preset"], settings["engine"], tuple(sorted(options.items())))
     matcher = _worker_matchers.get(key)
     if matcher is None:
-        matcher = _hnnstereo.Matcher(settings["preset"], settings["engine"], **options)
+        matcher = _new_matcher(settings, options)
         _worker_matchers[key] = matcher
     return matcher
 
@@ -452,7 +459,7 @@ def _workers_of(client):
 
 
 def match_pairs(pairs, out_dir, client=None, *, workers=None, preset="hnn-default",
-                engine="opencl", progress=None, **match_options):
+                engine=None, progress=None, **match_options):
     """Matches every pair on a Dask cluster; results under out_dir (module docstring).
 
     pairs: a PAIRS.csv path, or an iterable of dicts/Pairs (id, left, right, calib and/or
@@ -568,7 +575,7 @@ def _parser():
                              "CPU count)")
     parser.add_argument("--preset", default="hnn-default",
                         help="matcher preset: " + ", ".join(_hnnstereo.preset_names()))
-    parser.add_argument("--engine", default="opencl", help="opencl or cpu (default opencl)")
+    parser.add_argument("--engine", help="opencl or cpu (default: hnnstereo.Matcher's)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
     return parser
 

@@ -267,6 +267,7 @@ def test_bad_options_are_refused_before_any_work(pairs_csv, tmp_path, capsys):
              (["--top-k", "many"], "top-k"),
              (["--max-disparity", "40"], "max_disparity is per pair"),
              (["--preset", "nope"], "unknown preset 'nope'"),
+             (["--engine", "gpu"], "unknown engine 'gpu'"),
              (["--scheduler", "tcp://127.0.0.1:9", "--workers", "2"], "--workers is for the local"),
              (["--workers", "0"], "--workers must be >= 1")]
     for arguments, reason in cases:
