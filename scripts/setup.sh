@@ -10,6 +10,7 @@ PACKAGES=(cmake g++ ninja-build pkg-config
   libcli11-dev nlohmann-json3-dev libcpp-httplib-dev
   libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
   python3-dev python3-venv pybind11-dev python3-numpy python3-opencv python3-pytest
+  python3-distributed python3-dask  # python -m hnnstereo.batch and its test (pip .[batch] elsewhere)
   chromium)  # chromium: only the web page's browser test (tests/web/cell_page_cli_test.cc)
 
 # scripts/fuzz.sh: clang (libFuzzer) only when asked for.

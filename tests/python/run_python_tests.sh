@@ -3,16 +3,21 @@
 # --system-site-packages, so numpy, cv2 and pytest come from Debian), scikit-build-core from PyPI
 # once, `pip install .` of the source tree (build kept in BUILD_DIR/python-build, so later runs
 # are incremental), then pytest. Exit 77 (skipped) only when PyPI cannot be reached and
-# scikit-build-core is not installed yet.
+# scikit-build-core is not installed yet, or when a MODULE the test file needs is missing.
 # Usage: run_python_tests.sh [--install-only] SOURCE_DIR BUILD_DIR HNNSTEREO_BINARY
+#            [TEST_FILE [MODULE...]]
 # --install-only: the venv and the module, no tests (scripts/test.sh builds the module with the
 # rest, before CTest, and then sets HNNSTEREO_PYTHON_INSTALLED=1: the test runs pytest only).
+# TEST_FILE: the file under tests/python that pytest runs (default test_hnnstereo.py); MODULEs:
+# what it needs beyond numpy, cv2 and pytest - exit 77 (skipped) when one cannot be imported.
 set -euo pipefail
 install_only=0
 if [ "${1:-}" = --install-only ]; then install_only=1; shift; fi
 source_dir=$1
 build_dir=$2
 export HNNSTEREO_BINARY=$3
+test_file=$source_dir/tests/python/${4:-test_hnnstereo.py}
+needed_modules=("${@:5}")
 export HNNSTEREO_SOURCE_DIR=$source_dir
 venv=$build_dir/python-venv
 python=/usr/bin/python3  # Debian's: numpy and cv2 are its packages (not a pyenv python on PATH)
@@ -33,10 +38,14 @@ for module in numpy cv2 pytest; do
   "$venv/bin/python" -c "import $module" ||
     { echo "the venv lacks $module: run scripts/setup.sh (python3-numpy python3-opencv python3-pytest)"; exit 1; }
 done
+for module in "${needed_modules[@]}"; do
+  "$venv/bin/python" -c "import $module" 2>/dev/null ||
+    { echo "SKIPPED: the venv lacks $module (scripts/setup.sh installs it)"; exit 77; }
+done
 
 if [ "${HNNSTEREO_PYTHON_INSTALLED:-}" = 1 ] && ((!install_only)); then
   cd "$build_dir"
-  exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$source_dir/tests/python"
+  exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$test_file"
 fi
 
 launcher=()
@@ -55,4 +64,4 @@ CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_PARALLEL_LEVEL:-2} \
 echo "pip install: $((SECONDS - start)) s"
 if ((install_only)); then exit 0; fi
 cd "$build_dir"
-exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$source_dir/tests/python"
+exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$test_file"
