@@ -242,11 +242,14 @@ void MatcherFlags::AddEngineFlags(CLI::App* cmd) {
   AddText(cmd, "objective", hnn::ObjectiveName(bound_.energy.objective),
           "Compatibility (default: the preset's; hnn-thesis: thesis): thesis (eq. 6.6-6.8), "
           "printed0, printed1, printed2, geometry-similarity");
-  AddOnOff(cmd, "lr-check", refinement_shown_.left_right_check,
-           "The preset's left-right consistency check: keep a match only when the search back from "
-           "its right point lands on its left point");
-  // Pick cells refine with their own options (PositionSensingOptions::refinement: --subpixel).
-  if (!unrectified_cell) AddRefinementFlags(cmd);
+  // Pick cells refine with their own options (PositionSensingOptions::refinement: --subpixel),
+  // so they take neither the left-right check nor the preset's refinements.
+  if (!unrectified_cell) {
+    AddOnOff(cmd, "lr-check", refinement_shown_.left_right_check,
+             "The preset's left-right consistency check: keep a match only when the search back "
+             "from its right point lands on its left point");
+    AddRefinementFlags(cmd);
+  }
   AddNumber(cmd, "--support-radius", bound_.energy.support_radius_px,
             "Sparse networks: connect neurons whose left features are within this many px "
             "(default: the preset's)");

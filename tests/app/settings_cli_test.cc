@@ -30,10 +30,15 @@ void ExpectHelpHas(const std::string& command, std::initializer_list<const char*
 
 TEST_F(SettingsCli, PickShowsEveryBooleanPairWithTheDefaultThatRuns) {
   ExpectHelpHas(
-      "pick", {"--subpixel,--no-subpixel (default: on)", "--lr-check,--no-lr-check (default: on)",
-               "--image-edges,--no-image-edges (default: on)", "--dense,--no-dense (default: off)",
+      "pick", {"--subpixel,--no-subpixel (default: on)", "--image-edges,--no-image-edges (default: on)", "--dense,--no-dense (default: off)",
                "--stop TEXT=decisions", "--network TEXT=feature", "--zrange TEXT=-5,200",
                "--memory-budget-mb FLOAT=2048"});
+}
+
+// pick refines with the cell's own options: a --lr-check there would change nothing.
+TEST_F(SettingsCli, PickOffersNoLeftRightCheckItWouldIgnore) {
+  const CliResult result = RunCli("pick --help");
+  EXPECT_EQ(result.output.find("lr-check"), std::string::npos);
 }
 
 TEST_F(SettingsCli, MatchShowsTheLibraryDefaults) {
