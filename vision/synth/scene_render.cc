@@ -613,8 +613,8 @@ std::optional<std::vector<SceneObject>> TryPlaceObjects(const SceneRenderOptions
       objects = std::move(trial);
       placed = true;
     }
-    // A count the seed drew is a wish: the scene holds the parts that fit (seed 88018 drew 9,
-    // the ninth found no place in 4000 tries). A count the caller asked for is a contract.
+    // A count the seed drew is a wish: the scene holds the parts that fit (scene_render_test,
+    // ASeedDrawingMorePartsThanFitGetsThoseThatFit). A count the caller asked for is a contract.
     if (!placed && options.num_objects == 0) break;
     if (!placed) {
       *failed_part = k;
