@@ -107,6 +107,10 @@ const std::map<std::string, Setter>& DirectOptions() {
       {"max-updates", [](auto& n, auto& v, auto& o) { o.dynamics.max_updates = ParseInt(n, v); }},
       {"threshold", [](auto& n, auto& v, auto& o) { o.decode.threshold = ParseDouble(n, v); }},
       {"min-confidence", [](auto& n, auto& v, auto& o) { o.min_confidence = ParseDouble(n, v); }},
+      {"fit-memory-budget",
+       [](auto& n, auto& v, auto& o) { o.fit_memory_budget = ParseFlag(n, v); }},
+      {"coarse-to-fine-mp",
+       [](auto& n, auto& v, auto& o) { o.coarse_to_fine.min_megapixels = ParseDouble(n, v); }},
       {"check-interval",
        [](auto& n, auto& v, auto& o) { o.dynamics.energy_interval = ParseInt(n, v); }},
   };

@@ -11,6 +11,7 @@
 #include "app/commands.h"
 #include "common/atomic_file.h"
 #include "common/image.h"
+#include "perf/camera_size_bench.h"
 #include "perf/throughput_bench.h"
 
 namespace hnnstereo::app {
@@ -23,6 +24,7 @@ struct BenchArgs {
   std::string engines = "opencl,cpu,thesis";
   std::string solve_loop = "auto";
   int loop_groups = 0;  // OpenClEngineOptions::resident_groups
+  std::string camera_sizes;
   bool quick = false;
   bool profile = false;
   perf::ThroughputBenchOptions bench;
@@ -185,6 +187,51 @@ void PrintComparisons(const nlohmann::json& json) {
   }
 }
 
+// --camera-sizes: one row per size - the upsampled pair's whole match against StereoSGBM.
+void PrintCameraSizes(const nlohmann::json& json) {
+  std::printf("%-11s %6s %6s %8s %8s %8s %8s %8s %8s %8s %7s %9s %6s\n", "size", "MP", "disp",
+              "features", "total ms", "coarse", "cand", "network", "solve", "SGBM ms", "x SGBM",
+              "ms/1000f", "RSS MB");
+  for (const auto& row : json["camera_sizes"]) {
+    const auto& stage = row["stage_ms"];
+    std::printf("%5dx%-5d %6.2f %6.0f %8d %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %7.2f %9.1f %6.0f\n",
+                row["width"].get<int>(), row["height"].get<int>(), row["megapixels"].get<double>(),
+                row["max_disparity"].get<double>(), row["n_left"].get<int>(), row["ms"].get<double>(),
+                stage["coarse"].get<double>(), stage["candidates"].get<double>(),
+                stage["network"].get<double>() + stage["weights"].get<double>(),
+                stage["solve"].get<double>(), row["stereo_sgbm_ms"].get<double>(),
+                row["x_stereo_sgbm"].get<double>(), row["ms_per_1000_features"].get<double>(),
+                row["peak_resident_mb"].get<double>());
+  }
+  std::printf("ms per 1,000 features: largest / smallest over the sizes = %.2f\n",
+              json["ms_per_1000_features_spread"].get<double>());
+}
+
+void RunCameraSizes(BenchArgs& args, const vision::LoadedImage& left, const vision::LoadedImage& right) {
+  perf::CameraSizeBenchOptions sizes;
+  sizes.megapixels.clear();
+  for (const std::string& size : SplitCommas(args.camera_sizes)) {
+    try {
+      sizes.megapixels.push_back(std::stod(size));
+    } catch (const std::exception&) {
+      throw std::invalid_argument("--camera-sizes must be comma-separated megapixels (got '" +
+                                  args.camera_sizes + "')");
+    }
+  }
+  sizes.max_disparity = args.bench.max_disparity;
+  sizes.repeats = args.bench.repeats;
+  sizes.preset = {args.flags.preset, args.bench.matcher, args.flags.refinement};
+  sizes.progress = ProgressBar;
+  AsSetupError([&] {
+    if (auto error = sizes.Check(); !error.empty()) throw std::invalid_argument(error);
+  });
+  std::unique_ptr<ocl::Runtime> runtime = OpenRuntimeFor(args.bench.matcher.engine, args.flags.device);
+  const nlohmann::json json = perf::RunCameraSizeBench(left.grey, right.grey, sizes, runtime.get());
+  calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
+  PrintCameraSizes(json);
+  std::printf("wrote %s\n", args.out.c_str());
+}
+
 void RunBench(BenchArgs& args) {
   CheckOutputsWritable({{"--out", args.out}});
   ResolveBenchOptions(args);
@@ -197,6 +244,7 @@ void RunBench(BenchArgs& args) {
   if (!bench.ground_truth.empty()) {
     AsSetupError("--ground-truth", [&] { return vision::LoadImage(bench.ground_truth); });
   }
+  if (!args.camera_sizes.empty()) return RunCameraSizes(args, left, right);
   bench.progress = ProgressBar;
   const bool wants_opencl = std::find(bench.engines.begin(), bench.engines.end(),
                                       hnn::EngineKind::kOpenCL) != bench.engines.end();
@@ -238,6 +286,11 @@ void AddBenchCommand(CLI::App& app) {
                   "Sparse cases: --max-features values, comma-separated; 'all' = every feature "
                   "(the default match)")
       ->capture_default_str();
+  cmd->add_option("--camera-sizes", args->camera_sizes,
+                  "Instead of the sparse cases: the pair upsampled to each of these sizes "
+                  "(megapixels, comma-separated, e.g. 0.3,1.3,3,5), its whole match (match's "
+                  "settings, refinements included) against StereoSGBM on the same pair, stage "
+                  "times, peak memory and ms per 1,000 features (docs/benchmark.md)");
   cmd->add_option("--storages", args->storages,
                   "Run the opencl engine once per weight storage listed, comma-separated, of: " +
                       hnn::WeightStorageNames() + " (default: as --weights says)");

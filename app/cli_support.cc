@@ -197,6 +197,10 @@ void MatcherFlags::AddGatingFlags(CLI::App* cmd) {
   AddText(cmd, "zrange", zrange,
           "Calibrated pairs: ZMIN,ZMAX (mm) - a candidate whose triangulated point falls outside "
           "is not a neuron");
+  AddNumber(cmd, "--coarse-to-fine-mp", o.coarse_to_fine.min_megapixels,
+            "Rectified pairs of more megapixels than this: match at half size first, then each "
+            "feature searches a band of disparities around the half-size answer (0 = never; "
+            "docs/matching.md)");
   AddNumber(cmd, "--max-epipolar", o.candidates.max_epipolar_distance_px,
             "Largest distance (px) of a candidate from its epipolar line");
   AddNumber(cmd, "--top-k", o.candidates.top_k,
@@ -314,7 +318,10 @@ void MatcherFlags::AddDecodingFlags(CLI::App* cmd) {
   memory_budget_mb_ =
       static_cast<double>(o.memory_budget_bytes) / static_cast<double>(hnn::kBytesPerMegabyte);
   AddNumber(cmd, "--memory-budget-mb", memory_budget_mb_,
-            "Refuse networks that need more memory than this (MB)");
+            "Memory for the network (MB): see --fit-memory-budget");
+  AddOnOff(cmd, "fit-memory-budget", o.fit_memory_budget,
+           "A sparse network over the memory budget matches an evenly spread share of the left "
+           "features that fits (REPORT.json memory_fit); off: refuse the pair");
 }
 
 api::Overrides MatcherFlags::GivenOverrides() const {

@@ -27,6 +27,7 @@ struct EvalArgs {
   bool baselines = true;
   bool warped = false;
   bool quiet = false;
+  double upsample = 1.0;
   /// The matcher flags of `match`, applied to the first preset (the one under test); the engine,
   /// device and memory budget to every preset.
   MatcherFlags flags;
@@ -78,7 +79,9 @@ void RunEval(EvalArgs& args) {
                                "' (nor in its immediate subfolders)");
     }
     std::vector<vision::MiddleburyPair> loaded;
-    for (const std::string& directory : directories) loaded.push_back(vision::LoadMiddlebury(directory));
+    for (const std::string& directory : directories) {
+      loaded.push_back(vision::UpsampledMiddlebury(vision::LoadMiddlebury(directory), args.upsample));
+    }
     return loaded;
   });
 
@@ -179,6 +182,12 @@ void AddEvalCommand(CLI::App& app) {
             "Also evaluate the unrectified version: right image warped by a known H, calibration "
             "P2 = H P2, scored after mapping back with H");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
+  cmd->add_option("--upsample", args->upsample,
+                  "Evaluate each pair at this many times its size (images bicubic, ground truth "
+                  "nearest, disparities and range scaled): camera-sized pairs with real ground "
+                  "truth")
+      ->check(CLI::Range(1.0, 16.0))
+      ->capture_default_str();
   // match's matcher flags, over the first preset (for measuring changes, docs/accuracy.md); the
   // help shows hnn-default's values, the default first preset.
   args->flags.options = vision::AccurateDefaultPreset().matcher;

@@ -145,6 +145,18 @@ void PrintMatchSummary(const vision::MatchReport& report, const std::vector<std:
       report.solve.device.c_str(), report.solve.iterations, report.solve.termination.c_str(),
       report.solve.energy_initial, report.solve.energy_final, t.features, t.candidates, t.network,
       t.weights, t.solve, t.decode, t.total);
+  if (const vision::CoarseToFineReport& c = report.coarse_to_fine; c.applied) {
+    std::printf("coarse-to-fine: %d half-size level%s (%dx%d: %d matches, %.1f ms), then %.1f "
+                "disparity levels a feature (%d features searched the whole range)\n",
+                c.levels, c.levels == 1 ? "" : "s", c.coarse_size.width, c.coarse_size.height,
+                c.coarse_matches, t.coarse, c.mean_band_levels, c.features_whole_range);
+  }
+  if (report.memory_fit.applied) {
+    std::printf("memory budget: the network over all %d left features needed %.0f MB; it matched "
+                "an evenly spread %d of them (raise --memory-budget-mb to match all)\n",
+                report.n_left, static_cast<double>(report.memory_fit.needed_bytes) / (1 << 20),
+                report.memory_fit.left_features_matched);
+  }
   std::string list;
   for (const std::string& path : written) list += (list.empty() ? "" : ", ") + path;
   std::printf("wrote %s\n", list.c_str());

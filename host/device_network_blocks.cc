@@ -79,10 +79,11 @@ std::size_t BlockedNetwork::BlockBytes(std::size_t memory_budget_bytes) const {
           : n_blocks * static_cast<std::size_t>(choice_.row_pad * choice_.block_cols) *
                 (weights_mode_ == 1 ? 2u : 4u);
   if (block_bytes > memory_budget_bytes) {
-    throw std::runtime_error(
+    throw MemoryBudgetExceeded(
         "the row-blocked weights need " + std::to_string(block_bytes >> 20) +
         " MB, over the memory budget of " + std::to_string(memory_budget_bytes >> 20) +
-        " MB; use tighter gating, --max-features, or on-the-fly weights");
+        " MB; use tighter gating, --max-features, or on-the-fly weights",
+        block_bytes, memory_budget_bytes);
   }
   return block_bytes;
 }

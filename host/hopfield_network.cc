@@ -151,14 +151,15 @@ std::string MatchingProblem::Check() const {
 void CheckMemoryBudget(std::size_t bytes, std::size_t memory_budget_bytes, const std::string& what,
                        const NetworkLayout& layout) {
   if (bytes <= memory_budget_bytes) return;
-  throw std::runtime_error(
+  throw MemoryBudgetExceeded(
       what + " needs " + FormatBytes(static_cast<double>(bytes)) + " (" +
       std::to_string(layout.n_neurons) + " neurons from " + std::to_string(layout.n_rows) +
       " left features x " + std::to_string(layout.n_columns) + " columns, " +
       std::to_string(layout.n_connections()) + " connections), over the memory budget of " +
       FormatBytes(static_cast<double>(memory_budget_bytes)) +
       "; tighten the gating (--max-disparity, --top-k, --max-features, --support-radius, no "
-      "--dense) or raise --memory-budget-mb");
+      "--dense) or raise --memory-budget-mb",
+      bytes, memory_budget_bytes);
 }
 
 NetworkLayout BuildLayout(const MatchingProblem& problem, const EnergyOptions& options,

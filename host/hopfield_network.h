@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -56,7 +57,16 @@ NetworkLayout BuildLayout(const MatchingProblem& problem, const EnergyOptions& o
 
 NetworkSize EstimateSize(const NetworkLayout& layout);
 
-/// Throws std::runtime_error naming the sizes when `bytes` exceeds the budget.
+/// What a network over the memory budget throws: the one-line reason, and the bytes it needs
+/// against the budget (a matcher may then choose fewer features, vision::MatchStereo).
+class MemoryBudgetExceeded : public std::runtime_error {
+ public:
+  MemoryBudgetExceeded(const std::string& reason, std::size_t needed_bytes, std::size_t budget_bytes)
+      : std::runtime_error(reason), needed_bytes(needed_bytes), budget_bytes(budget_bytes) {}
+  std::size_t needed_bytes, budget_bytes;
+};
+
+/// Throws MemoryBudgetExceeded naming the sizes when `bytes` exceeds the budget.
 void CheckMemoryBudget(std::size_t bytes, std::size_t memory_budget_bytes, const std::string& what,
                        const NetworkLayout& layout);
 

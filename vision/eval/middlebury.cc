@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/atomic_file.h"
 #include "common/image.h"
@@ -194,6 +195,50 @@ cv::Mat LeftRightConsistentMask(const cv::Mat& left_disparity, const cv::Mat& ri
     }
   }
   return mask;
+}
+
+MiddleburyPair UpsampledMiddlebury(const MiddleburyPair& pair, double factor) {
+  if (!(factor >= 1.0) || !(factor <= 16.0)) {
+    throw std::invalid_argument("an upsampling factor must be in [1, 16]");
+  }
+  if (factor == 1.0) return pair;
+  MiddleburyPair up = pair;
+  std::ostringstream name;
+  name << pair.name << "_x" << factor;
+  up.name = name.str();
+  const cv::Size size(static_cast<int>(std::lround(pair.left_grey.cols * factor)),
+                      static_cast<int>(std::lround(pair.left_grey.rows * factor)));
+  auto images = [&](const cv::Mat& in, int interpolation) {
+    cv::Mat out;
+    if (!in.empty()) cv::resize(in, out, size, 0, 0, interpolation);
+    return out;
+  };
+  up.left_original = images(pair.left_original, cv::INTER_CUBIC);
+  up.right_original = images(pair.right_original, cv::INTER_CUBIC);
+  up.left_grey = images(pair.left_grey, cv::INTER_CUBIC);
+  up.right_grey = images(pair.right_grey, cv::INTER_CUBIC);
+  auto disparities = [&](const cv::Mat& in) {
+    cv::Mat out = images(in, cv::INTER_NEAREST);
+    if (!out.empty()) out *= factor;
+    return out;
+  };
+  up.disparity = disparities(pair.disparity);
+  up.right_disparity = disparities(pair.right_disparity);
+  up.nonoccluded = images(pair.nonoccluded, cv::INTER_NEAREST);
+  up.min_disparity = pair.min_disparity * factor;
+  up.max_disparity = pair.max_disparity * factor;
+  if (pair.calibration) {
+    // x' = S x with S = [f 0 (f-1)/2; 0 f (f-1)/2; 0 0 1]: P' = S P.
+    Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+    S(0, 0) = S(1, 1) = factor;
+    S(0, 2) = S(1, 2) = (factor - 1.0) / 2.0;
+    up.calibration->P1 = S * pair.calibration->P1;
+    up.calibration->P2 = S * pair.calibration->P2;
+    up.calibration->image_width = size.width;
+    up.calibration->image_height = size.height;
+    up.calibration->DeriveFromProjections();
+  }
+  return up;
 }
 
 MiddleburyPair LoadMiddlebury(const std::string& directory) {

@@ -60,6 +60,12 @@ std::vector<std::string> FindMiddleburyDatasets(const std::string& directory);
 /// (unrecognised folder, unreadable file, sizes that disagree).
 MiddleburyPair LoadMiddlebury(const std::string& directory);
 
+/// The pair at `factor` times its size, for camera-sized tests with real ground truth: the
+/// images bicubic, the ground truth and masks nearest-neighbour with every disparity times
+/// `factor` (a pixel x maps to factor x + (factor - 1) / 2), the search range and calibration
+/// scaled alike; `name` gains "_x<factor>". factor >= 1; 1 returns the pair unchanged.
+MiddleburyPair UpsampledMiddlebury(const MiddleburyPair& pair, double factor);
+
 /// Reads a PFM image (header "Pf" grey or "PF" colour, negative scale = little-endian, rows
 /// stored bottom-to-top) as CV_32F (CV_32FC3 for "PF"), top row first. Infinite values are kept.
 /// Throws std::runtime_error on a malformed file.

@@ -122,6 +122,7 @@ struct DisparityCandidates {
   const ZnccMatcher& zncc;
   const CandidateOptions& options;
   int d_min, d_max;
+  const std::vector<DisparityBand>& bands;  // empty, or one per left feature
 
   int n_columns() const { return std::max(0, d_max - d_min + 1); }
 
@@ -129,29 +130,43 @@ struct DisparityCandidates {
   void Append(int i, Scratch& scratch, std::vector<hnn::Candidate>& out,
               std::int64_t& pairs_tested) const {
     const Eigen::Vector2f& l = left_points[static_cast<std::size_t>(i)];
+    // The levels searched (lo..hi) and profiled (first..last: one more each side inside the
+    // range, so a band's end is a peak only when it beats the level beyond).
+    int lo = d_min, hi = d_max;
+    if (!bands.empty()) {
+      lo = std::max(lo, bands[static_cast<std::size_t>(i)].lo);
+      hi = std::min(hi, bands[static_cast<std::size_t>(i)].hi);
+      if (lo > hi) return;
+    }
+    const Levels levels{lo, hi, std::max(d_min, lo - 1), std::min(d_max, hi + 1)};
     std::vector<Scored>& scored = scratch.scored;
     scored.clear();
-    // The ZNCC profile along the row (all disparities at once, vision/correlation.h).
-    scratch.profile.resize(static_cast<std::size_t>(n_columns()));
-    zncc.RowProfile(l, d_min, d_max, scratch.profile.data());
-    pairs_tested += n_columns();
+    // The similarity profile along the row (all disparities at once, vision/correlation.h).
+    scratch.profile.resize(static_cast<std::size_t>(levels.last - levels.first + 1));
+    zncc.RowProfile(l, levels.first, levels.last, scratch.profile.data());
+    pairs_tested += levels.last - levels.first + 1;
     if (!options.zncc_peaks && !options.subpixel_peaks) {
-      ScoreAllLevels(l, scratch.profile, &scored);
+      ScoreAllLevels(l, levels, scratch.profile, &scored);
     } else {
-      ScorePeaks(l, &scratch.profile, &scored);
+      ScorePeaks(l, levels, &scratch.profile, &scored);
     }
     KeepTopK(&scored, options.top_k);
     for (const Scored& s : scored) out.push_back({i, s.column, s.right_point, s.tau, s.correlation});
   }
 
  private:
+  struct Levels {
+    int lo, hi;       // candidates come from these levels
+    int first, last;  // the profile's levels (profile[0] is level `first`)
+  };
+
   // Every level whose right window lies in the image and whose ZNCC reaches min_correlation.
-  void ScoreAllLevels(const Eigen::Vector2f& l, const std::vector<float>& profile,
-                      std::vector<Scored>* scored) const {
-    for (int d = d_min; d <= d_max; ++d) {
+  void ScoreAllLevels(const Eigen::Vector2f& l, const Levels& levels,
+                      const std::vector<float>& profile, std::vector<Scored>* scored) const {
+    for (int d = levels.lo; d <= levels.hi; ++d) {
       const Eigen::Vector2f r(l.x() - static_cast<float>(d), l.y());
       if (!zncc.RightWindowInside(r)) continue;  // no such pixel in the right image
-      const float m = profile[static_cast<std::size_t>(d - d_min)];
+      const float m = profile[static_cast<std::size_t>(d - levels.first)];
       if (m < options.min_correlation) continue;
       scored->push_back({d - d_min, r, 0.0f, m});
     }
@@ -160,33 +175,33 @@ struct DisparityCandidates {
   // The profile's peaks (and/or sub-pixel vertices). -2 marks a level whose right window
   // leaves the image: never a candidate. The right x falls as d rises, so the levels inside
   // are one run: only the levels outside it at either end are tested one by one.
-  void ScorePeaks(const Eigen::Vector2f& l, std::vector<float>* profile_out,
+  void ScorePeaks(const Eigen::Vector2f& l, const Levels& levels, std::vector<float>* profile_out,
                   std::vector<Scored>* scored) const {
     std::vector<float>& profile = *profile_out;
     auto outside = [&](int d) {
       return !zncc.RightWindowInside(Eigen::Vector2f(l.x() - static_cast<float>(d), l.y()));
     };
-    int inside_first = d_min, inside_last = d_max;
-    while (inside_first <= d_max && outside(inside_first)) {
-      profile[static_cast<std::size_t>(inside_first++ - d_min)] = -2.0f;
+    int inside_first = levels.first, inside_last = levels.last;
+    while (inside_first <= levels.last && outside(inside_first)) {
+      profile[static_cast<std::size_t>(inside_first++ - levels.first)] = -2.0f;
     }
     while (inside_last >= inside_first && outside(inside_last)) {
-      profile[static_cast<std::size_t>(inside_last-- - d_min)] = -2.0f;
+      profile[static_cast<std::size_t>(inside_last-- - levels.first)] = -2.0f;
     }
-    const int n = n_columns();
-    for (int c = 0; c < n; ++c) {
+    const int n = levels.last - levels.first + 1;
+    for (int c = levels.lo - levels.first; c <= levels.hi - levels.first; ++c) {
       const float m = profile[static_cast<std::size_t>(c)];
       if (m < -1.0f || m < options.min_correlation) continue;
       const float before = c > 0 ? profile[static_cast<std::size_t>(c - 1)] : -2.0f;
       const float after = c + 1 < n ? profile[static_cast<std::size_t>(c + 1)] : -2.0f;
       if (options.zncc_peaks && !(m >= before && m >= after)) continue;
-      float d = static_cast<float>(c + d_min);
+      float d = static_cast<float>(c + levels.first);
       if (options.subpixel_peaks && c > 0 && c + 1 < n) {
         // Vertex of the parabola through (d-1, before), (d, m), (d+1, after), in disparity.
         const float curvature = before - 2.0f * m + after;
         if (curvature < 0.0f) d += std::clamp(0.5f * (before - after) / curvature, -0.5f, 0.5f);
       }
-      scored->push_back({c, Eigen::Vector2f(l.x() - d, l.y()), 0.0f, m});
+      scored->push_back({c + levels.first - d_min, Eigen::Vector2f(l.x() - d, l.y()), 0.0f, m});
     }
   }
 };
@@ -291,7 +306,8 @@ void CollectCandidates(int n_left, const Source& source, CandidateReport* report
 // The feature-vs-disparity network's levels: refuses a range beyond the image width (a level
 // there can never hold a candidate) before allocating for it.
 DisparityCandidates DisparityLevels(const std::vector<Eigen::Vector2f>& left_points,
-                                    const ZnccMatcher& zncc, const CandidateOptions& options) {
+                                    const ZnccMatcher& zncc, const CandidateOptions& options,
+                                    const std::vector<DisparityBand>& bands) {
   const double width_limit = std::max(0, zncc.right_width() - 1);
   if (options.max_disparity > width_limit || options.min_disparity < -width_limit) {
     throw std::invalid_argument(
@@ -301,7 +317,7 @@ DisparityCandidates DisparityLevels(const std::vector<Eigen::Vector2f>& left_poi
         std::to_string(static_cast<int>(width_limit)) + ")");
   }
   return {left_points, zncc, options, static_cast<int>(std::ceil(options.min_disparity)),
-          static_cast<int>(std::floor(options.max_disparity))};
+          static_cast<int>(std::floor(options.max_disparity)), bands};
 }
 
 // The feature-vs-feature network's candidates: right features bucketed by row (rectified,
@@ -355,7 +371,8 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
                                 const std::vector<Eigen::Vector2f>& right_points,
                                 const ZnccMatcher& zncc,
                                 const calib::StereoCalibration* calibration,
-                                const CandidateOptions& options) {
+                                const CandidateOptions& options,
+                                const std::vector<DisparityBand>& bands) {
   const auto start = std::chrono::steady_clock::now();
   if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
   if (!options.rectified && calibration == nullptr) {
@@ -368,7 +385,10 @@ CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
   problem.dense = options.dense;
   report.right_points = right_points;
   if (options.kind == hnn::NetworkKind::kFeatureVsDisparity) {
-    const DisparityCandidates levels = DisparityLevels(left_points, zncc, options);
+    if (!bands.empty() && bands.size() != left_points.size()) {
+      throw std::invalid_argument("BuildCandidates: one disparity band per left feature");
+    }
+    const DisparityCandidates levels = DisparityLevels(left_points, zncc, options, bands);
     problem.n_columns = levels.n_columns();
     CollectCandidates(static_cast<int>(left_points.size()), levels, &report);
   } else {

@@ -37,6 +37,12 @@ struct CandidateOptions {
   std::string Check() const;
 };
 
+/// The disparity levels one left feature searches (feature-vs-disparity network), lo..hi
+/// inclusive: a band around a coarser level's answer (vision/stereo/coarse_to_fine.h).
+struct DisparityBand {
+  int lo = 0, hi = -1;  ///< an empty band (lo > hi) gives the feature no candidate
+};
+
 struct CandidateReport {
   hnn::MatchingProblem problem;
   std::vector<Eigen::Vector2f> right_points;  ///< right features (feature-vs-feature)
@@ -45,11 +51,14 @@ struct CandidateReport {
 };
 
 /// Builds the matching problem. `calibration` is required unless options.rectified; its F gives
-/// tau and its P1, P2 the height gate. Throws std::invalid_argument on bad options.
+/// tau and its P1, P2 the height gate. `bands` (feature-vs-disparity network only): empty, or
+/// one per left feature - that feature searches only its band (clipped to the options' range;
+/// the columns stay the levels of the whole range). Throws std::invalid_argument on bad options.
 CandidateReport BuildCandidates(const std::vector<Eigen::Vector2f>& left_points,
                                 const std::vector<Eigen::Vector2f>& right_points,
                                 const ZnccMatcher& zncc,
                                 const calib::StereoCalibration* calibration,
-                                const CandidateOptions& options);
+                                const CandidateOptions& options,
+                                const std::vector<DisparityBand>& bands = {});
 
 }  // namespace hnnstereo::vision

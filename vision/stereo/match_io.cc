@@ -61,6 +61,21 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                        {"solve", report.timing_ms.solve},
                        {"decode", report.timing_ms.decode},
                        {"total", report.timing_ms.total}};
+  if (report.memory_fit.applied) {
+    json["memory_fit"] = {{"needed_bytes", report.memory_fit.needed_bytes},
+                          {"budget_bytes", options.memory_budget_bytes},
+                          {"left_features_matched", report.memory_fit.left_features_matched}};
+  }
+  if (report.coarse_to_fine.applied) {
+    const CoarseToFineReport& c = report.coarse_to_fine;
+    json["timing_ms"]["coarse"] = report.timing_ms.coarse;
+    json["coarse_to_fine"] = {{"levels", c.levels},
+                              {"coarse_width", c.coarse_size.width},
+                              {"coarse_height", c.coarse_size.height},
+                              {"coarse_matches", c.coarse_matches},
+                              {"mean_band_levels", c.mean_band_levels},
+                              {"features_whole_range", c.features_whole_range}};
+  }
   const auto& e = options.energy;
   json["energy_options"] = {{"A", e.A}, {"B", e.B}, {"C", e.C}, {"D", e.D}, {"W1", e.W1},
                             {"W2", e.W2}, {"T", e.T}, {"lambda", e.lambda}, {"theta", e.theta},

@@ -188,6 +188,7 @@ struct TableRefiner {
   const RefinementOptions& refinement;
   bool rectified;
   int d_min, d_max;  // the disparity levels searched on a rectified pair
+  const std::vector<DisparityBand>& bands;  // per left feature (coarse-to-fine), or empty
 
   // Whether the match is kept; refines its right x in place (`reverse_profile`: scratch).
   bool Refine(StereoMatch& match, std::vector<float>& reverse_profile) const {
@@ -203,14 +204,21 @@ struct TableRefiner {
     float best = -std::numeric_limits<float>::infinity();
     Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
     if (rectified) {
-      // Every disparity's ZNCC at once (vision/correlation.h), then the same scan.
-      reverse_profile.resize(static_cast<std::size_t>(std::max(0, d_max - d_min + 1)));
-      zncc.ReverseRowProfile(match.right, d_min, d_max, reverse_profile.data());
-      for (int d = d_min; d <= d_max; ++d) {
+      // Every disparity's ZNCC at once (vision/correlation.h), then the same scan; over the
+      // band the match's left feature searched, on a coarse-to-fine pair.
+      int lo = d_min, hi = d_max;
+      if (!bands.empty() && match.left_index >= 0 &&
+          static_cast<std::size_t>(match.left_index) < bands.size()) {
+        lo = std::max(lo, bands[static_cast<std::size_t>(match.left_index)].lo);
+        hi = std::min(hi, bands[static_cast<std::size_t>(match.left_index)].hi);
+      }
+      reverse_profile.resize(static_cast<std::size_t>(std::max(0, hi - lo + 1)));
+      if (hi >= lo) zncc.ReverseRowProfile(match.right, lo, hi, reverse_profile.data());
+      for (int d = lo; d <= hi; ++d) {
         const Eigen::Vector2f left(std::round(match.right.x()) + static_cast<float>(d),
                                    std::round(match.right.y()));
         if (left.x() > static_cast<float>(left_grey.cols - 1)) break;
-        const float score = reverse_profile[static_cast<std::size_t>(d - d_min)];
+        const float score = reverse_profile[static_cast<std::size_t>(d - lo)];
         if (score > best) best = score, best_left = left;
       }
     } else {
@@ -340,7 +348,8 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
     }
     const TableRefiner refiner{left_grey, calibration, *similarity, refinement, rectified,
                                static_cast<int>(std::ceil(matcher.candidates.min_disparity)),
-                               static_cast<int>(std::floor(matcher.candidates.max_disparity))};
+                               static_cast<int>(std::floor(matcher.candidates.max_disparity)),
+                               report->disparity_bands};
     RefineOnTables(refiner, &report->matches);
   }
   if (along_epipolar_lines) {

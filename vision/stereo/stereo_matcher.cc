@@ -97,6 +97,7 @@ std::string MatcherOptions::Check() const {
     return "zncc_window must be odd, 3..15 (got " + std::to_string(zncc_window) + ")";
   }
   if (auto e = data_term.Check(); !e.empty()) return e;
+  if (auto e = coarse_to_fine.Check(); !e.empty()) return e;
   if (!(decode.threshold >= 0.0 && decode.threshold <= 1.0)) return "decode threshold must be in [0, 1]";
   return {};
 }
@@ -143,6 +144,24 @@ hnn::SolveReport SolveNetwork(const hnn::MatchingProblem& problem, const Matcher
     }
   }
   return {};
+}
+
+// Keeps about `share` of the left features (and their bands), evenly spread: the detectors
+// list features in raster order, so every k-th of the list is spread over the image.
+void KeepEvenlySpread(double share, std::vector<Eigen::Vector2f>* points,
+                      std::vector<DisparityBand>* bands) {
+  share = std::clamp(share, 0.0, 1.0);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < points->size(); ++i) {
+    if (std::floor(static_cast<double>(i + 1) * share) == std::floor(static_cast<double>(i) * share)) {
+      continue;
+    }
+    (*points)[kept] = (*points)[i];
+    if (!bands->empty()) (*bands)[kept] = (*bands)[i];
+    ++kept;
+  }
+  points->resize(kept);
+  if (!bands->empty()) bands->resize(kept);
 }
 
 // The decoded winners as matches, each with its margins over the best other neuron of its row
@@ -210,21 +229,46 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   }
 
   start = Clock::now();
+  if (CoarseToFineApplies(options, left_grey.size())) {
+    report.disparity_bands = CoarseDisparityBands(left_grey, right_grey, left.points, options,
+                                                  runtime, &report.coarse_to_fine);
+    report.timing_ms.coarse = report.coarse_to_fine.ms;
+  }
   report.similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey,
                                                           options.zncc_window, options.data_term);
-  CandidateReport candidates = BuildCandidates(left.points, right.points, *report.similarity,
-                                               calibration, options.candidates);
-  report.timing_ms.candidates = MillisecondsSince(start);
-  const hnn::MatchingProblem& problem = candidates.problem;
-  report.n_neurons = problem.n_neurons();
-  if (problem.candidates.empty()) {
-    throw std::runtime_error("no candidate matches passed the gating (" +
-                             std::to_string(candidates.pairs_tested) +
-                             " pairs tested); widen --max-disparity or the epipolar distance");
+  // The network over every left feature; over an evenly spread share of them when it would not
+  // fit the memory budget (fit_memory_budget).
+  std::vector<Eigen::Vector2f> network_left = left.points;
+  CandidateReport candidates;
+  for (int attempt = 0;; ++attempt) {
+    const auto candidates_start = Clock::now();
+    candidates = BuildCandidates(network_left, right.points, *report.similarity, calibration,
+                                 options.candidates, report.disparity_bands);
+    report.timing_ms.candidates += MillisecondsSince(attempt == 0 ? start : candidates_start);
+    const hnn::MatchingProblem& problem = candidates.problem;
+    report.n_neurons = problem.n_neurons();
+    if (problem.candidates.empty()) {
+      throw std::runtime_error("no candidate matches passed the gating (" +
+                               std::to_string(candidates.pairs_tested) +
+                               " pairs tested); widen --max-disparity or the epipolar distance");
+    }
+    if (options.network_observer) options.network_observer(problem, options.energy, options.dynamics);
+    try {
+      report.solve = SolveNetwork(problem, options, runtime, &report.engine_notice);
+      break;
+    } catch (const hnn::MemoryBudgetExceeded& over) {
+      if (!options.fit_memory_budget || options.candidates.dense || attempt == 3) throw;
+      // Connections grow about as the square of the features per area: keep a share that
+      // should need 80 % of the budget.
+      const double share = 0.8 * std::sqrt(static_cast<double>(over.budget_bytes) /
+                                            static_cast<double>(over.needed_bytes));
+      report.memory_fit.applied = true;
+      report.memory_fit.needed_bytes = std::max(report.memory_fit.needed_bytes, over.needed_bytes);
+      KeepEvenlySpread(share, &network_left, &report.disparity_bands);
+      report.memory_fit.left_features_matched = static_cast<int>(network_left.size());
+    }
   }
-
-  if (options.network_observer) options.network_observer(problem, options.energy, options.dynamics);
-  report.solve = SolveNetwork(problem, options, runtime, &report.engine_notice);
+  const hnn::MatchingProblem& problem = candidates.problem;
   report.n_connections = report.solve.n_connections;
   report.timing_ms.network = report.solve.network_ms;
   report.timing_ms.weights = report.solve.weights_ms;

@@ -19,6 +19,7 @@
 #include "host/opencl_runtime.h"
 #include "host/solve_report.h"
 #include "vision/stereo/candidates.h"
+#include "vision/stereo/coarse_to_fine.h"
 #include "vision/features/features.h"
 
 namespace hnnstereo::vision {
@@ -90,6 +91,12 @@ struct MatcherOptions {
   hnn::EngineKind engine = hnn::EngineKind::kOpenCL;
   hnn::OpenClEngineOptions opencl;  ///< weight storage and work split of the opencl engine
   std::size_t memory_budget_bytes = hnn::kDefaultMemoryBudgetBytes;
+  /// A sparse network over the memory budget matches an evenly spread share of the left
+  /// features that fits (MatchReport::memory_fit says how many) instead of refusing the pair.
+  bool fit_memory_budget = true;
+  /// Camera-sized rectified pairs: a half-size match first, then each feature searches a band
+  /// of disparities around it (vision/stereo/coarse_to_fine.h).
+  CoarseToFineOptions coarse_to_fine;
   /// Called with the network (problem, energy, dynamics) before it is solved, when set: `match
   /// --save-network` captures it for replays on other devices (host/network_file.h).
   std::function<void(const hnn::MatchingProblem&, const hnn::EnergyOptions&,
@@ -135,6 +142,7 @@ void CountAgreeingNeighbours(std::vector<StereoMatch>& matches);
 
 struct TimingMs {
   double features = 0, candidates = 0, network = 0, weights = 0, solve = 0, decode = 0, total = 0;
+  double coarse = 0;  ///< the half-size match of a coarse-to-fine pair (part of candidates' time)
 };
 
 struct MatchReport {
@@ -148,6 +156,16 @@ struct MatchReport {
   /// The similarity of windows the candidates were scored with, on the matched pair: the
   /// refinement (RefineMatches) reuses it instead of computing the images' tables again.
   std::shared_ptr<const ZnccMatcher> similarity;
+  /// Coarse-to-fine pairs: the disparity levels each left feature searched (one per left
+  /// feature; empty otherwise). The left-right check searches back over the same band.
+  std::vector<DisparityBand> disparity_bands;
+  CoarseToFineReport coarse_to_fine;
+  /// What fit_memory_budget chose, when the network over every left feature did not fit.
+  struct MemoryFit {
+    bool applied = false;
+    std::size_t needed_bytes = 0;    ///< what the network over every left feature needed
+    int left_features_matched = 0;   ///< the share of the n_left features the network matched
+  } memory_fit;
 };
 
 /// Runs the matcher on CV_8U grey images of equal size. `calibration` may be null only for
