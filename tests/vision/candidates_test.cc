@@ -150,6 +150,47 @@ TEST(BuildCandidates, ZnccPeaksWithSubpixelDisparities) {
                std::invalid_argument);
 }
 
+TEST(BuildCandidates, DisparityBandsLimitTheLevelsAndKeepTheColumns) {
+  const Pair pair = TexturedPair(5);
+  const ZnccMatcher zncc(pair.left, pair.right, 7);
+  CandidateOptions options;
+  options.rectified = true;
+  options.kind = hnn::NetworkKind::kFeatureVsDisparity;
+  options.min_disparity = 4;
+  options.max_disparity = 15;
+  options.top_k = 0;
+  options.zncc_peaks = true;
+  const CandidateReport whole = BuildCandidates(pair.left_points, {}, zncc, nullptr, options);
+  // A band over the whole range (or wider) is the same problem as no band.
+  const std::vector<DisparityBand> everything(pair.left_points.size(), DisparityBand{0, 40});
+  const CandidateReport same = BuildCandidates(pair.left_points, {}, zncc, nullptr, options, everything);
+  ASSERT_EQ(same.problem.candidates.size(), whole.problem.candidates.size());
+  for (std::size_t a = 0; a < whole.problem.candidates.size(); ++a) {
+    EXPECT_EQ(same.problem.candidates[a].column, whole.problem.candidates[a].column);
+    EXPECT_EQ(same.problem.candidates[a].correlation, whole.problem.candidates[a].correlation);
+  }
+  // Bands 8..12 around the true shift (10): only those levels, columns still counted from 4,
+  // the true disparity still a peak of every feature; an empty band leaves its feature out.
+  std::vector<DisparityBand> bands(pair.left_points.size(), DisparityBand{8, 12});
+  bands[0] = DisparityBand{};
+  const CandidateReport banded = BuildCandidates(pair.left_points, {}, zncc, nullptr, options, bands);
+  EXPECT_EQ(banded.problem.n_columns, 12);
+  // Each feature profiles its band and one level beyond each end (peaks), the first none.
+  EXPECT_EQ(banded.pairs_tested, 7 * static_cast<std::int64_t>(pair.left_points.size() - 1));
+  std::set<int> with_true;
+  for (const hnn::Candidate& c : banded.problem.candidates) {
+    EXPECT_NE(c.left, 0);
+    EXPECT_GE(c.column + 4, 8);
+    EXPECT_LE(c.column + 4, 12);
+    if (c.column + 4 == static_cast<int>(kShift)) with_true.insert(c.left);
+  }
+  EXPECT_EQ(with_true.size(), pair.left_points.size() - 1);
+  // One band per left feature, or none.
+  bands.pop_back();
+  EXPECT_THROW(BuildCandidates(pair.left_points, {}, zncc, nullptr, options, bands),
+               std::invalid_argument);
+}
+
 TEST(BuildCandidates, HeightRangeGatesThroughTriangulation) {
   const Pair pair = TexturedPair(5);
   const ZnccMatcher zncc(pair.left, pair.right, 7);

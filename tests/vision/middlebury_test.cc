@@ -118,6 +118,27 @@ TEST(MiddleburyLayout, Synthetic2003SetScalesByFourAndChecksSizes) {
   EXPECT_THROW(LoadMiddlebury(dir.str()), std::runtime_error);
 }
 
+TEST(UpsampledMiddlebury, ScalesTheImagesTheTruthAndTheRange) {
+  TempDir dir("upsampled");
+  std::mt19937 random(9);
+  cv::Mat left(40, 60, CV_8U), disparity(40, 60, CV_8U, cv::Scalar(12));  // 12 / 4 = 3 px
+  cv::randu(left, 0, 255);
+  disparity.at<std::uint8_t>(5, 5) = 0;  // unknown
+  cv::imwrite(dir / "im2.png", left);
+  cv::imwrite(dir / "im6.png", left);
+  cv::imwrite(dir / "disp2.png", disparity);
+  const MiddleburyPair pair = LoadMiddlebury(dir.str());
+  const MiddleburyPair up = UpsampledMiddlebury(pair, 2.0);
+  EXPECT_EQ(up.name, pair.name + "_x2");
+  EXPECT_EQ(up.left_grey.size(), cv::Size(120, 80));
+  EXPECT_EQ(up.disparity.size(), cv::Size(120, 80));
+  EXPECT_FLOAT_EQ(up.disparity.at<float>(0, 0), 6.0f);
+  EXPECT_TRUE(std::isnan(up.disparity.at<float>(10, 10)));  // pixel (5, 5) covers 10..11
+  EXPECT_EQ(up.max_disparity, 2.0 * pair.max_disparity);
+  EXPECT_EQ(UpsampledMiddlebury(pair, 1.0).left_grey.size(), pair.left_grey.size());
+  EXPECT_THROW(UpsampledMiddlebury(pair, 0.5), std::invalid_argument);
+}
+
 // Mean |I_left(x, y) - I_right(x - d, y)| over non-occluded pixels, with the truth or shifted.
 double PhotometricError(const MiddleburyPair& pair, double extra_shift) {
   double sum = 0.0;
@@ -183,6 +204,21 @@ INSTANTIATE_TEST_SUITE_P(
         RealSet{"middlebury2005_2006_third_Aloe", MiddleburyLayout::k2005, 3.0, 14.33, 70.33,
                 "left-right check"},
         RealSet{"middlebury2014_Q_Adirondack", MiddleburyLayout::k2014, 1.0, 9.46, 63.04, "mask"}));
+
+TEST(UpsampledMiddlebury, TheTruthStillMapsLeftPixelsOntoTheirRightPixels) {
+  const MiddleburyPair up = UpsampledMiddlebury(
+      LoadMiddlebury(std::string(HNNSTEREO_SOURCE_DIR) + "/tests/data/middlebury2003_teddy"), 2.0);
+  // The scaled truth lands each left pixel on its own right pixel: 4 px (2 of the pair as
+  // stored) either way is clearly worse.
+  const double at_truth = PhotometricError(up, 0.0);
+  EXPECT_LT(at_truth, 0.85 * PhotometricError(up, 4.0)) << at_truth;
+  EXPECT_LT(at_truth, 0.85 * PhotometricError(up, -4.0)) << at_truth;
+  const std::string folder = kDatasets + "/middlebury2014_Q_Adirondack";
+  if (!fs::exists(folder)) GTEST_SKIP() << folder << " not present";
+  const MiddleburyPair calibrated = UpsampledMiddlebury(LoadMiddlebury(folder), 2.0);
+  EXPECT_EQ(calibrated.calibration->ImageSizeProblem(calibrated.left_grey.cols,
+                                                     calibrated.left_grey.rows), "");
+}
 
 TEST(MiddleburyDatasets, ParentFolderListsEverySetSorted) {
   if (!fs::exists(kDatasets)) GTEST_SKIP() << kDatasets << " is absent";

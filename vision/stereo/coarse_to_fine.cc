@@ -65,7 +65,7 @@ bool CoarseToFineApplies(const MatcherOptions& options, cv::Size image_size) {
          image_size.width >= 64 && image_size.height >= 64;
 }
 
-std::vector<DisparityBand> CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_grey,
+CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                                 const std::vector<Eigen::Vector2f>& left_points,
                                                 const MatcherOptions& options, ocl::Runtime* runtime,
                                                 CoarseToFineReport* report) {
@@ -93,7 +93,13 @@ std::vector<DisparityBand> CoarseDisparityBands(const cv::Mat& left_grey, const 
   const int d_min = static_cast<int>(std::ceil(options.candidates.min_disparity));
   const int d_max = static_cast<int>(std::floor(options.candidates.max_disparity));
   const int margin = options.coarse_to_fine.band_margin;
-  std::vector<DisparityBand> bands(left_points.size(), DisparityBand{d_min, d_max});
+  CoarseBands bands;
+  bands.search.assign(left_points.size(), DisparityBand{d_min, d_max});
+  bands.check.assign(left_points.size(), DisparityBand{d_min, d_max});
+  auto scaled = [&](float low, float high) {
+    return DisparityBand{std::max(d_min, static_cast<int>(std::floor(2.0f * low)) - margin),
+                         std::min(d_max, static_cast<int>(std::ceil(2.0f * high)) + margin)};
+  };
   double levels_searched = 0.0;
   int whole_range = 0;
   for (std::size_t i = 0; i < left_points.size(); ++i) {
@@ -105,12 +111,15 @@ std::vector<DisparityBand> CoarseDisparityBands(const cv::Mat& left_grey, const 
     for (std::size_t s = 0; s < support.low.size() && !backed; ++s) {
       const float low = support.low[s].at<float>(y, x), high = support.high[s].at<float>(y, x);
       if (low > high) continue;  // no coarse match within this square
-      bands[i] = {std::max(d_min, static_cast<int>(std::floor(2.0f * low)) - margin),
-                  std::min(d_max, static_cast<int>(std::ceil(2.0f * high)) + margin)};
+      bands.search[i] = scaled(low, high);
       backed = true;
     }
     if (!backed) ++whole_range;
-    levels_searched += std::max(0, bands[i].hi - bands[i].lo + 1);
+    if (const float low = support.low.back().at<float>(y, x), high = support.high.back().at<float>(y, x);
+        low <= high) {
+      bands.check[i] = scaled(low, high);
+    }
+    levels_searched += std::max(0, bands.search[i].hi - bands.search[i].lo + 1);
   }
   if (report) {
     report->applied = true;

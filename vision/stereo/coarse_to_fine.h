@@ -53,10 +53,17 @@ struct CoarseToFineReport {
 /// Whether MatchStereo matches this pair coarse-to-fine.
 bool CoarseToFineApplies(const MatcherOptions& options, cv::Size image_size);
 
+/// Per left feature of the full-size pair, bands of disparity levels (clipped to the options'
+/// range): `search`, the levels its candidates come from (the coarse matches in the smallest
+/// square that holds one); `check`, the levels the left-right check searches back over (those in
+/// the largest square: an occluding surface up to 2 x 24 px away is still found).
+struct CoarseBands {
+  std::vector<DisparityBand> search, check;
+};
+
 /// Matches the half-size pair (MatchStereo, recursively coarse-to-fine, then a left-right check
-/// and the sub-pixel fit) and returns each left feature's band of disparity levels of the
-/// full-size pair (DisparityBand; clipped to the options' range).
-std::vector<DisparityBand> CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_grey,
+/// and the sub-pixel fit) and returns each left feature's bands.
+CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                                 const std::vector<Eigen::Vector2f>& left_points,
                                                 const MatcherOptions& options, ocl::Runtime* runtime,
                                                 CoarseToFineReport* report);

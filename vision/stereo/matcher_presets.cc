@@ -188,7 +188,7 @@ struct TableRefiner {
   const RefinementOptions& refinement;
   bool rectified;
   int d_min, d_max;  // the disparity levels searched on a rectified pair
-  const std::vector<DisparityBand>& bands;  // per left feature (coarse-to-fine), or empty
+  const std::vector<DisparityBand>& bands;  // check bands per left feature, or none
 
   // Whether the match is kept; refines its right x in place (`reverse_profile`: scratch).
   bool Refine(StereoMatch& match, std::vector<float>& reverse_profile) const {
@@ -205,7 +205,7 @@ struct TableRefiner {
     Eigen::Vector2f best_left(std::numeric_limits<float>::quiet_NaN(), 0.0f);
     if (rectified) {
       // Every disparity's ZNCC at once (vision/correlation.h), then the same scan; over the
-      // band the match's left feature searched, on a coarse-to-fine pair.
+      // match's check band on a coarse-to-fine pair (MatchReport::check_bands).
       int lo = d_min, hi = d_max;
       if (!bands.empty() && match.left_index >= 0 &&
           static_cast<std::size_t>(match.left_index) < bands.size()) {
@@ -349,7 +349,7 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
     const TableRefiner refiner{left_grey, calibration, *similarity, refinement, rectified,
                                static_cast<int>(std::ceil(matcher.candidates.min_disparity)),
                                static_cast<int>(std::floor(matcher.candidates.max_disparity)),
-                               report->disparity_bands};
+                               report->check_bands};
     RefineOnTables(refiner, &report->matches);
   }
   if (along_epipolar_lines) {

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <initializer_list>
 #include <stdexcept>
 
 
@@ -149,7 +150,7 @@ hnn::SolveReport SolveNetwork(const hnn::MatchingProblem& problem, const Matcher
 // Keeps about `share` of the left features (and their bands), evenly spread: the detectors
 // list features in raster order, so every k-th of the list is spread over the image.
 void KeepEvenlySpread(double share, std::vector<Eigen::Vector2f>* points,
-                      std::vector<DisparityBand>* bands) {
+                      std::initializer_list<std::vector<DisparityBand>*> band_lists) {
   share = std::clamp(share, 0.0, 1.0);
   std::size_t kept = 0;
   for (std::size_t i = 0; i < points->size(); ++i) {
@@ -157,11 +158,15 @@ void KeepEvenlySpread(double share, std::vector<Eigen::Vector2f>* points,
       continue;
     }
     (*points)[kept] = (*points)[i];
-    if (!bands->empty()) (*bands)[kept] = (*bands)[i];
+    for (std::vector<DisparityBand>* bands : band_lists) {
+      if (!bands->empty()) (*bands)[kept] = (*bands)[i];
+    }
     ++kept;
   }
   points->resize(kept);
-  if (!bands->empty()) bands->resize(kept);
+  for (std::vector<DisparityBand>* bands : band_lists) {
+    if (!bands->empty()) bands->resize(kept);
+  }
 }
 
 // The decoded winners as matches, each with its margins over the best other neuron of its row
@@ -230,8 +235,10 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
 
   start = Clock::now();
   if (CoarseToFineApplies(options, left_grey.size())) {
-    report.disparity_bands = CoarseDisparityBands(left_grey, right_grey, left.points, options,
-                                                  runtime, &report.coarse_to_fine);
+    CoarseBands bands = CoarseDisparityBands(left_grey, right_grey, left.points, options, runtime,
+                                             &report.coarse_to_fine);
+    report.disparity_bands = std::move(bands.search);
+    report.check_bands = std::move(bands.check);
     report.timing_ms.coarse = report.coarse_to_fine.ms;
   }
   report.similarity = std::make_shared<const ZnccMatcher>(left_grey, right_grey,
@@ -264,7 +271,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                             static_cast<double>(over.needed_bytes));
       report.memory_fit.applied = true;
       report.memory_fit.needed_bytes = std::max(report.memory_fit.needed_bytes, over.needed_bytes);
-      KeepEvenlySpread(share, &network_left, &report.disparity_bands);
+      KeepEvenlySpread(share, &network_left, {&report.disparity_bands, &report.check_bands});
       report.memory_fit.left_features_matched = static_cast<int>(network_left.size());
     }
   }

@@ -156,9 +156,9 @@ struct MatchReport {
   /// The similarity of windows the candidates were scored with, on the matched pair: the
   /// refinement (RefineMatches) reuses it instead of computing the images' tables again.
   std::shared_ptr<const ZnccMatcher> similarity;
-  /// Coarse-to-fine pairs: the disparity levels each left feature searched (one per left
-  /// feature; empty otherwise). The left-right check searches back over the same band.
-  std::vector<DisparityBand> disparity_bands;
+  /// Coarse-to-fine pairs (CoarseBands; one per left feature of the network, empty otherwise):
+  /// the disparity levels each left feature searched, and those its left-right check searches.
+  std::vector<DisparityBand> disparity_bands, check_bands;
   CoarseToFineReport coarse_to_fine;
   /// What fit_memory_budget chose, when the network over every left feature did not fit.
   struct MemoryFit {
