@@ -212,7 +212,9 @@ void RunCameraSizes(BenchArgs& args, const vision::LoadedImage& left, const visi
   sizes.megapixels.clear();
   for (const std::string& size : SplitCommas(args.camera_sizes)) {
     try {
-      sizes.megapixels.push_back(std::stod(size));
+      std::size_t used = 0;
+      sizes.megapixels.push_back(std::stod(size, &used));
+      if (used != size.size()) throw std::invalid_argument(size);
     } catch (const std::exception&) {
       throw std::invalid_argument("--camera-sizes must be comma-separated megapixels (got '" +
                                   args.camera_sizes + "')");

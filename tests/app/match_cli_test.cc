@@ -208,6 +208,44 @@ TEST_F(MatchCli, OverTheMemoryBudget) {
   EXPECT_NE(result.output.find("neurons"), std::string::npos) << result.output;
 }
 
+TEST_F(MatchCli, ASparseNetworkOverTheBudgetMatchesASpreadShareAndSaysSo) {
+  ExpectCleanFailure(RunCli(Teddy("--rectified --max-disparity 64 --memory-budget-mb 0.3 "
+                                  "--no-fit-memory-budget")),
+                     "memory budget");
+  const CliResult fitted = RunCli(Teddy("--rectified --max-disparity 64 --memory-budget-mb 0.3 "
+                                        "--report " + Path("r.json")));
+  ASSERT_EQ(fitted.exit_code, 0) << fitted.output;
+  EXPECT_NE(fitted.output.find("memory budget: the network over all"), std::string::npos)
+      << fitted.output;
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(Path("r.json")));
+  ASSERT_TRUE(report.contains("memory_fit")) << report.dump();
+  EXPECT_LT(report["memory_fit"]["left_features_matched"].get<int>(), report["n_left"].get<int>());
+  EXPECT_GT(report["memory_fit"]["needed_bytes"].get<double>(), 0.3 * (1 << 20));
+}
+
+TEST_F(MatchCli, BenchAtCameraSizesComparesWithStereoSgbmPerSize) {
+  const CliResult result =
+      RunCli("bench --out " + Path("cam.json") + " --camera-sizes 0.1,0.6 --repeats 1 --engine cpu");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const nlohmann::json bench = nlohmann::json::parse(std::ifstream(Path("cam.json")));
+  ASSERT_EQ(bench["camera_sizes"].size(), 2u);
+  const double sizes[] = {0.1, 0.6};
+  for (std::size_t i = 0; i < 2; ++i) {
+    const nlohmann::json& row = bench["camera_sizes"][i];
+    EXPECT_NEAR(row["megapixels"].get<double>(), sizes[i], 0.01 * sizes[i]);
+    EXPECT_GT(row["stereo_sgbm_ms"].get<double>(), 0.0);
+    EXPECT_GT(row["ms_per_1000_features"].get<double>(), 0.0);
+    EXPECT_GT(row["peak_resident_mb"].get<double>(), 10.0);
+  }
+  // Teddy at 0.6 MP (disparities to 117) is matched coarse-to-fine, at 0.1 MP it is not.
+  EXPECT_EQ(bench["camera_sizes"][0]["coarse_to_fine_levels"], 0);
+  EXPECT_EQ(bench["camera_sizes"][1]["coarse_to_fine_levels"], 1);
+  EXPECT_GE(bench["ms_per_1000_features_spread"].get<double>(), 1.0);
+  const CliResult bad = RunCli("bench --out " + Path("bad.json") + " --camera-sizes 1,x");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--camera-sizes must be"), std::string::npos) << bad.output;
+}
+
 TEST_F(MatchCli, NoOpenClPlatformFallsBackToTheCpuEngine) {
   const CliResult result = RunCli(Teddy("--rectified --max-disparity 64 --report " + Path("r.json")),
                             "OCL_ICD_VENDORS=" + Path("no_vendors") + " OPENCL_VENDOR_PATH=" +
