@@ -16,12 +16,17 @@ pair's calib, max_disparity and batch_settings), each written atomically (a temp
 a rename); ``DIR/manifest.csv``: id, status (done, failed, skipped), attempts, seconds, error per
 pair.
 
-Needs ``pip install hnnstereo[batch]`` (dask distributed); the core module does not import dask.
-Workers read the images from their paths, so every worker must see them at the same path (a
-shared file system for a remote cluster). Each worker process keeps one Matcher per setting for
-its life. A pair whose match fails (an exception, or a KilledWorker after its workers died) is
-retried once, then reported failed; the others go on. A re-run skips pairs whose report.json
-holds the same inputs and settings (resume).
+Optional columns ``ground_truth`` (the left view's disparity map: PNG/PGM, 0 unknown, or PFM,
+not finite unknown) and ``ground_truth_scale`` (stored value / scale = px, default 1): the pair's
+report.json then holds "accuracy" and the summary the accuracy over such pairs.
+``hnnstereo.batch.evaluate(dataset_dirs)``: accuracy over Middlebury sets, one task a set.
+
+Needs ``pip install hnnstereo[batch]`` (dask distributed, OpenCV's cv2); the core module does not
+import dask. Workers read the images from their paths, so every worker must see them at the same
+path (a shared file system for a remote cluster). Each worker process keeps one Matcher per
+setting for its life. A pair whose match fails, or whose worker dies while matching it, is
+tried once more, then reported failed (attempts in the manifest count both); the others go on.
+A re-run skips pairs whose report.json holds the same inputs and settings (resume).
 """
 
 import csv as _csv
@@ -1105,9 +1110,13 @@ PAIRS.csv (header, then one pair a row; relative paths from PAIRS.csv's folder):
   id,left,right,calib,max_disparity
   teddy,teddy/im2.png,teddy/im6.png,,64          a rectified pair: disparities up to 64 px
   cell-7,cell7/left.png,cell7/right.png,cell7/calib.yml,   a calibrated pair (CAL.yml)
+Optional columns ground_truth (left disparity map: PNG/PGM 0 = unknown, or PFM) and
+ground_truth_scale (stored value / scale = px; default 1): accuracy in report.json and the
+summary (share of matches with ground truth within 1 px, density over the Canny edges).
 Writes DIR/<id>/matches.csv (as `hnnstereo match --out`), DIR/<id>/report.json (as --report)
 and DIR/manifest.csv (id,status,attempts,seconds,error; status done, failed or skipped).
-A failed pair is retried once; a re-run skips the pairs already done.
+A failed pair (its worker died, too) is tried once more; a re-run skips the pairs already done.
+--scheduler: refused (exit 2) when it does not answer within 5 s.
 
 Match options are the `hnnstereo match` flags, e.g. --max-features 1500 --top-k 8 --no-lr-check
 (a flag without a value is on); --preset and --engine as there. Exit status: 0 all pairs done,
