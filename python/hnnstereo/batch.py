@@ -29,6 +29,7 @@ tried once more, then reported failed (attempts in the manifest count both); the
 A re-run skips pairs whose report.json holds the same inputs and settings (resume).
 """
 
+import asyncio as _asyncio
 import csv as _csv
 import json as _json
 import math as _math
@@ -1204,11 +1205,24 @@ def _connect(address, timeout_s=CONNECT_TIMEOUT_S):
             raise BatchInputError(f"cannot reach the scheduler {address}: {reason} (within "
                                   f"{timeout_s:g} s)") from None
     try:
+        # Dask's handshake, bounded here: a peer that accepts and stays silent holds some
+        # distributed versions' Client(timeout=...) for ever (2026.8 did).
+        _asyncio.run(_asyncio.wait_for(_handshake(address), timeout_s))
         with dask.config.set({"distributed.comm.timeouts.connect": f"{timeout_s}s"}):
             return Client(address, timeout=f"{timeout_s}s")
-    except (OSError, TimeoutError, ValueError) as error:
+    except (_asyncio.TimeoutError, TimeoutError):
+        raise BatchInputError(f"cannot reach the scheduler {address}: no Dask answer within "
+                              f"{timeout_s:g} s") from None
+    except (OSError, ValueError) as error:
         raise BatchInputError(f"cannot reach the scheduler {address}: "
                               f"{' '.join(str(error).split())}") from None
+
+
+async def _handshake(address):
+    from distributed.comm import connect
+
+    comm = await connect(address)
+    await comm.close()
 
 
 def main(argv=None):
