@@ -881,11 +881,12 @@ def match_pairs(pairs, out_dir, client=None, *, workers=None, preset="hnn-defaul
     """Matches every pair on a Dask cluster; results under out_dir (module docstring).
 
     pairs: a PAIRS.csv path, or an iterable of dicts/Pairs (id, left, right, calib and/or
-    max_disparity; relative paths against the current folder). client: a distributed.Client;
-    None starts a LocalCluster of `workers` processes (default: the CPU count), one thread each,
-    and closes it at the end. preset, engine, match_options: as hnnstereo.match (the
-    ``hnnstereo match`` flags; max_disparity is per pair). progress: a stream for the progress
-    line (None: silent). Returns a BatchReport. Raises BatchInputError before any work on bad
+    max_disparity, optionally ground_truth and ground_truth_scale; relative paths against the
+    current folder). client: a distributed.Client; None starts a LocalCluster of `workers`
+    processes (default: the CPU count), one thread each, and closes it at the end. preset,
+    engine, match_options: as hnnstereo.match (the ``hnnstereo match`` flags; max_disparity is
+    per pair). progress: a stream for the progress line (None: silent). Returns a BatchReport
+    (.accuracy: over the pairs with ground truth). Raises BatchInputError before any work on bad
     pairs, outputs or settings.
     """
     _require_distributed()
