@@ -347,10 +347,10 @@ def _left_right_mask(left, right, tolerance_px=1.0):
         return inside & np.isfinite(dr) & (np.abs(dr - left) <= tolerance_px)
 
 
-_MIDDLEBURY_LAYOUTS = [  # middlebury.cc FindLayoutFiles, in its order: name, files, scale
+_MIDDLEBURY_LAYOUTS = [  # middlebury.cc FindLayoutFiles, in its order: name, role -> files
     ("middlebury2014", {"left": ["im0.png"], "right": ["im1.png"],
-                        "disparity": ["disp0GT.pfm", "disp0.pfm"], "right_disparity": ["disp1GT.pfm"],
-                        "mask": ["mask0nocc.png"]}),
+                        "disparity": ["disp0GT.pfm", "disp0.pfm"],
+                        "right_disparity": ["disp1GT.pfm"], "mask": ["mask0nocc.png"]}),
     ("middlebury2001-tsukuba", {"left": ["scene1.row3.col3.ppm", "scene1.row3.col3.png"],
                                 "right": ["scene1.row3.col4.ppm", "scene1.row3.col4.png"],
                                 "disparity": ["truedisp.row3.col3.pgm", "truedisp.row3.col3.png"],

@@ -376,7 +376,8 @@ def test_evaluate_gives_the_figures_of_hnnstereo_eval(datasets, cli_eval, client
     assert by_name["band2014"]["n_occluded"] > 0  # the mask's occluded columns were read
     for name, accuracy in list(by_name.items()) + [("overall", report.overall)]:
         expected_figures = cli_eval[name]
-        assert {k: accuracy[k] for k in COMPARED} == {k: expected_figures[k] for k in COMPARED}, name
+        assert ({k: accuracy[k] for k in COMPARED}
+                == {k: expected_figures[k] for k in COMPARED}), name
         for key in ("precision_1px", "precision_2px", "density"):
             assert accuracy[key] == pytest.approx(expected_figures[key], abs=1e-12), (name, key)
     assert "within 1 px" in report.brief() and "(overall)" in report.brief()
