@@ -7,7 +7,12 @@ other load on the machine falls on each about equally); and the scheduler's over
 
 Each measurement: every pair read, matched and its matches.csv and report.json written; the
 Matchers are built before the clock starts (a warm-up pair per worker). Prints one line per
-measurement and a summary per PAIRS.csv (medians); --json writes them all.
+measurement and a summary per PAIRS.csv (medians): pairs a second, CPU seconds a pair and the
+cores used (this process for the loop, the workers' processes for a cluster, PoCL's threads
+included), how busy the whole machine was (/proc/stat: other users' load too), and the loop's
+stages (read, match, write); --json writes them all. The loop runs with this process's
+environment: `POCL_MAX_PTHREAD_COUNT=1 python perf/batch_throughput.py ...` limits it (and, with
+2:POCL_MAX_PTHREAD_COUNT=1 in --workers, a cluster's workers) to one PoCL thread.
 """
 
 import argparse
@@ -45,30 +50,58 @@ def make_teddy_crops(n_pairs, folder, size=(400, 333)):
         f.write("\n".join(rows) + "\n")
 
 
-def plain_loop(pairs, out_dir):
-    """One process: read, hnnstereo.match, write the two files -> seconds."""
+def plain_loop(pairs, out_dir, stages=None):
+    """One process: read, hnnstereo.match, write the two files -> seconds; `stages` (a dict)
+    gets the seconds of each stage summed (read, match, write)."""
+    stages = {} if stages is None else stages
+    for stage in ("read", "match", "write"):
+        stages.setdefault(stage, 0.0)
     start = time.perf_counter()
     for pair in pairs:
+        t0 = time.perf_counter()
         left = cv2.imread(pair.left, cv2.IMREAD_UNCHANGED)
         right = cv2.imread(pair.right, cv2.IMREAD_UNCHANGED)
+        t1 = time.perf_counter()
         result = hnnstereo.match(left, right, max_disparity=pair.max_disparity or 64,
                                  calib=pair.calib)
+        t2 = time.perf_counter()
         folder = os.path.join(out_dir, pair.id)
         os.makedirs(folder, exist_ok=True)
         with open(os.path.join(folder, "matches.csv"), "w") as f:
             f.write(batch.matches_csv(result.matches))
         with open(os.path.join(folder, "report.json"), "w") as f:
             json.dump(result.report, f, separators=(",", ":"))  # as hnnstereo.batch writes it
+        t3 = time.perf_counter()
+        stages["read"] += t1 - t0
+        stages["match"] += t2 - t1
+        stages["write"] += t3 - t2
     return time.perf_counter() - start
 
 
+def cpu_seconds():
+    """This process's CPU seconds (user + system, all its threads: PoCL's too)."""
+    times = os.times()
+    return times.user + times.system
+
+
+def machine_busy():
+    """(busy, total) jiffies of the whole machine since boot (/proc/stat): every process, the
+    other users' builds included."""
+    with open("/proc/stat") as f:
+        values = [int(v) for v in f.readline().split()[1:]]
+    idle = values[3] + values[4]  # idle + iowait
+    return sum(values) - idle, sum(values)
+
+
 def on_cluster(client, pairs, out_dir):
-    """match_pairs on the cluster -> (seconds, summed task seconds)."""
+    """match_pairs on the cluster -> (seconds, summed task seconds, the workers' CPU seconds)."""
+    cpu_before = sum(client.run(cpu_seconds).values())
     start = time.perf_counter()
     report = batch.match_pairs(pairs, out_dir, client)
     seconds = time.perf_counter() - start
+    cpu = sum(client.run(cpu_seconds).values()) - cpu_before
     assert report.done == len(pairs), report.brief()
-    return seconds, sum(row["seconds"] for row in report.rows)
+    return seconds, sum(row["seconds"] for row in report.rows), cpu
 
 
 def noop(index):
@@ -112,19 +145,29 @@ def measure(pairs_csv, clusters, out_root, repeats, log):
         for name in ["loop"] + list(clusters):
             out_dir = os.path.join(out_root, "run")
             shutil.rmtree(out_dir, ignore_errors=True)
-            task_seconds = None
+            task_seconds, stages = None, {}
+            busy_before = machine_busy()
             if name == "loop":
-                seconds = plain_loop(pairs, out_dir)
+                cpu_before = cpu_seconds()
+                seconds = plain_loop(pairs, out_dir, stages)
+                cpu = cpu_seconds() - cpu_before
             else:
-                seconds, task_seconds = on_cluster(clusters[name][1], pairs,
-                                                   out_dir)
+                seconds, task_seconds, cpu = on_cluster(clusters[name][1], pairs, out_dir)
+            busy_after = machine_busy()
+            machine = (busy_after[0] - busy_before[0]) / max(1, busy_after[1] - busy_before[1])
             run = {"pairs_csv": pairs_csv, "config": name, "repeat": repeat, "pairs": len(pairs),
                    "seconds": seconds, "pairs_per_second": len(pairs) / seconds,
-                   "task_seconds": task_seconds, "load1": os.getloadavg()[0]}
+                   "task_seconds": task_seconds, "load1": os.getloadavg()[0],
+                   "cpu_s_per_pair": cpu / len(pairs), "cores_used": cpu / seconds,
+                   "machine_busy": machine,
+                   "stages_ms_per_pair": {k: 1e3 * v / len(pairs) for k, v in stages.items()}}
             runs.append(run)
+            stage_text = " ".join(f"{k} {v:.0f}" for k, v in run["stages_ms_per_pair"].items())
             print(f"{os.path.basename(os.path.dirname(pairs_csv))} {name}: {len(pairs)} pairs "
-                  f"in {seconds:.1f} s = {run['pairs_per_second']:.2f} pairs/s "
-                  f"(load {run['load1']:.1f})", file=log, flush=True)
+                  f"in {seconds:.1f} s = {run['pairs_per_second']:.2f} pairs/s; "
+                  f"{1e3 * run['cpu_s_per_pair']:.0f} ms CPU a pair, {run['cores_used']:.2f} cores "
+                  f"used, machine {100 * machine:.0f} % busy (load {run['load1']:.1f})"
+                  + (f"; ms a pair: {stage_text}" if stage_text else ""), file=log, flush=True)
     return runs
 
 
@@ -163,8 +206,14 @@ def main():
         mine = [r for r in runs if r["pairs_csv"] == os.path.abspath(pairs_csv)]
         loop = statistics.median(r["pairs_per_second"] for r in mine if r["config"] == "loop")
         for config in sorted({r["config"] for r in mine}):
-            rate = statistics.median(r["pairs_per_second"] for r in mine if r["config"] == config)
-            print(f"{pairs_csv}: {config}: median {rate:.2f} pairs/s = {rate / loop:.2f} x loop")
+            chosen = [r for r in mine if r["config"] == config]
+            rate = statistics.median(r["pairs_per_second"] for r in chosen)
+            cpu = statistics.median(r["cpu_s_per_pair"] for r in chosen)
+            cores = statistics.median(r["cores_used"] for r in chosen)
+            busy = statistics.median(r["machine_busy"] for r in chosen)
+            print(f"{pairs_csv}: {config}: median {rate:.2f} pairs/s = {rate / loop:.2f} x loop; "
+                  f"{1e3 * cpu:.0f} ms CPU a pair, {cores:.2f} cores used, machine "
+                  f"{100 * busy:.0f} % busy")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"task_overhead_s": overhead, "runs": runs,

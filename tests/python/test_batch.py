@@ -5,12 +5,14 @@ import csv
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
 
 import cv2
+import numpy as np
 import pytest
 
 distributed = pytest.importorskip("distributed")
@@ -110,32 +112,69 @@ def test_matches_csv_is_the_cli_file(pairs_csv, expected, tmp_path):
     assert (tmp_path / "m.csv").read_text() == expected[pair.id]
 
 
-def kill_one_worker_after(client, out_dir, n_reports):
-    """SIGKILLs one worker process once n_reports pairs are written -> pairs written by then."""
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        written = sum(1 for _ in out_dir.glob("*/report.json")) if out_dir.exists() else 0
-        if written >= n_reports:
-            pid = sorted(client.run(os.getpid).values())[0]
-            os.kill(pid, signal.SIGKILL)
-            return written
-        time.sleep(0.01)
-    raise AssertionError("no pair written in 120 s")
+def running_pid(folder):
+    """The worker pid of a run of the pair in `folder` that has begun and not ended (its
+    DIR/<id>/.running-<key>-<pid> marker), or None."""
+    for marker in folder.glob(".running-*") if folder.exists() else []:
+        return int(marker.name.rsplit("-", 1)[1])
+    return None
+
+
+def kill_workers_running(folder, times, deadline_s=240):
+    """SIGKILLs the worker process running the pair in `folder`, `times` times (each a new run)
+    -> the pids killed."""
+    killed, deadline = [], time.monotonic() + deadline_s
+    while len(killed) < times and time.monotonic() < deadline:
+        pid = running_pid(folder)
+        if pid is not None and pid not in killed:
+            try:
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+            except ProcessLookupError:  # it ended (its run too) just now
+                pass
+        time.sleep(0.005)
+    return killed
+
+
+def in_thread(function):
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.update(value=function()))
+    thread.start()
+    return thread, outcome
 
 
 def test_a_worker_killed_midway_loses_and_repeats_no_pair(pairs_csv, expected, client, tmp_path):
+    """The fixture's scheduler reruns the killed pair by itself (dask's allowed-failures): the
+    rerun still counts as that pair's second attempt."""
     out_dir = tmp_path / "out"
-    outcome = {}
-    run = threading.Thread(target=lambda: outcome.update(
-        report=batch.match_pairs(pairs_csv, out_dir, client)))
-    run.start()
-    written_at_kill = kill_one_worker_after(client, out_dir, 4)
+    run, outcome = in_thread(lambda: batch.match_pairs(pairs_csv, out_dir, client))
+    killed = kill_workers_running(out_dir / "p08", 1)
     run.join(300)
-    assert not run.is_alive()
-    assert written_at_kill < N_PAIRS  # the kill came while pairs were left
-    assert outcome["report"].done == N_PAIRS
-    assert_every_pair_once(out_dir, expected)
+    assert not run.is_alive() and len(killed) == 1
+    assert outcome["value"].done == N_PAIRS
+    rows = assert_every_pair_once(out_dir, expected)
+    assert {row["id"]: row["attempts"] for row in rows if row["attempts"] != "1"} == {"p08": "2"}
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the tests after
+
+
+def test_a_pair_whose_worker_dies_twice_is_reported_failed(pairs_csv, expected, tmp_path):
+    """The local cluster of match_pairs: a worker death is an attempt, retried once, then
+    reported; the other pairs are done once each."""
+    out_dir = tmp_path / "out"
+    run, outcome = in_thread(lambda: batch.match_pairs(pairs_csv, out_dir, workers=2))
+    killed = kill_workers_running(out_dir / "p03", 2)
+    run.join(300)
+    assert not run.is_alive() and len(killed) == 2
+    report = outcome["value"]
+    assert (report.done, report.failed) == (N_PAIRS - 1, 1)
+    rows = {row["id"]: row for row in manifest(out_dir)}
+    failed = rows.pop("p03")
+    assert (failed["status"], failed["attempts"]) == ("failed", "2")
+    assert "KilledWorker" in failed["error"]
+    assert not any(name for name in os.listdir(out_dir / "p03") if not name.startswith(".tmp"))
+    assert all(row["status"] == "done" and row["attempts"] == "1" for row in rows.values())
+    for pair_id in rows:
+        assert (out_dir / pair_id / "matches.csv").read_text() == expected[pair_id]
 
 
 def test_a_rerun_skips_the_pairs_done(pairs_csv, expected, client, tmp_path):
@@ -274,3 +313,141 @@ def test_bad_options_are_refused_before_any_work(pairs_csv, tmp_path, capsys):
         assert reason in refused(capsys, "--pairs", pairs_csv, "--out", tmp_path / "out",
                                  *arguments), arguments
         assert not (tmp_path / "out").exists()
+
+
+# ---- Accuracy: evaluate() and the ground_truth column, against `hnnstereo eval` -------------
+
+def write_pfm(path, values):
+    """A grey little-endian PFM, rows bottom-to-top (the Middlebury 2014 format)."""
+    with open(path, "wb") as f:
+        f.write(f"Pf\n{values.shape[1]} {values.shape[0]}\n-1\n".encode())
+        f.write(np.flipud(values).astype("<f4").tobytes())
+
+
+@pytest.fixture(scope="module")
+def datasets(tmp_path_factory):
+    """Two sets: Teddy 2003 as vendored (PNG / 4, occlusions by left-right check) and a
+    Middlebury 2014 layout made from a band of it (PFM ground truth, +inf unknown, a mask)."""
+    folder = tmp_path_factory.mktemp("sets")
+    teddy = folder / "teddy2003"
+    teddy.mkdir()
+    for name in ("im2.png", "im6.png", "disp2.png", "disp6.png"):
+        (teddy / name).write_bytes(open(os.path.join(TEDDY, name), "rb").read())
+    band = folder / "band2014"
+    band.mkdir()
+    rows = slice(90, 260)
+    for source, target in (("im2.png", "im0.png"), ("im6.png", "im1.png")):
+        image = cv2.imread(os.path.join(TEDDY, source), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(band / target), image[rows])
+    stored = cv2.imread(os.path.join(TEDDY, "disp2.png"), cv2.IMREAD_UNCHANGED)[rows]
+    disparity = np.where(stored > 0, stored / 4.0, np.inf).astype(np.float32)
+    write_pfm(band / "disp0GT.pfm", disparity)
+    # 255 visible, 128 occluded (2014's level: only 255 counts), here every 7th column.
+    mask = np.full(stored.shape, 255, np.uint8)
+    mask[:, ::7] = 128
+    cv2.imwrite(str(band / "mask0nocc.png"), mask)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def cli_eval(datasets, tmp_path_factory):
+    """`hnnstereo eval` over both sets: set name -> its hnn-default figures, and the overall."""
+    if not CLI:
+        pytest.skip("HNNSTEREO_BINARY is not set (ctest sets it)")
+    out = tmp_path_factory.mktemp("eval") / "eval.json"
+    subprocess.run([CLI, "eval", "--dataset", str(datasets), "--presets", "hnn-default",
+                    "--no-baselines", "--out", str(out), "--quiet"], check=True, timeout=600)
+    data = json.loads(out.read_text())
+    figures = {p["name"]: p["methods"][0] for p in data["pairs"]}
+    figures["overall"] = data["overall"][0]
+    return figures
+
+
+COMPARED = ["n_matches", "n_with_truth", "n_nonoccluded", "n_occluded", "n_edges_with_truth"]
+
+
+def test_evaluate_gives_the_figures_of_hnnstereo_eval(datasets, cli_eval, client):
+    report = batch.evaluate(datasets, client)
+    assert report.failed == 0
+    by_name = {os.path.basename(row["id"]): row["accuracy"] for row in report.rows}
+    assert sorted(by_name) == ["band2014", "teddy2003"]
+    assert by_name["band2014"]["occlusion_source"] == "mask"
+    assert by_name["teddy2003"]["occlusion_source"] == "left-right check"
+    assert by_name["band2014"]["n_occluded"] > 0  # the mask's occluded columns were read
+    for name, accuracy in list(by_name.items()) + [("overall", report.overall)]:
+        expected_figures = cli_eval[name]
+        assert ({k: accuracy[k] for k in COMPARED}
+                == {k: expected_figures[k] for k in COMPARED}), name
+        for key in ("precision_1px", "precision_2px", "density"):
+            assert accuracy[key] == pytest.approx(expected_figures[key], abs=1e-12), (name, key)
+    assert "within 1 px" in report.brief() and "(overall)" in report.brief()
+
+
+def test_evaluate_refuses_a_folder_without_sets(tmp_path):
+    with pytest.raises(batch.BatchInputError, match="is not a Middlebury set and holds none"):
+        batch.evaluate([tmp_path])
+
+
+def test_ground_truth_column_scores_each_pair(datasets, cli_eval, client, tmp_path):
+    """Teddy with its left ground truth (no mask: every known pixel counts as visible, so the
+    matches within 1 px are eval's visible and occluded ones together)."""
+    teddy = datasets / "teddy2003"
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("id,left,right,max_disparity,ground_truth,ground_truth_scale\n"
+                     f"teddy,{teddy / 'im2.png'},{teddy / 'im6.png'},64,{teddy / 'disp2.png'},4\n"
+                     f"plain,{teddy / 'im2.png'},{teddy / 'im6.png'},64,,\n")
+    report = batch.match_pairs(pairs, tmp_path / "out", client)
+    assert (report.done, report.failed) == (2, 0)
+    accuracy = json.loads((tmp_path / "out" / "teddy" / "report.json").read_text())["accuracy"]
+    assert "accuracy" not in json.loads((tmp_path / "out" / "plain" / "report.json").read_text())
+    eval_teddy = cli_eval["teddy2003"]
+    for key in ("n_matches", "n_with_truth", "n_edges_with_truth"):
+        assert accuracy[key] == eval_teddy[key], key
+    assert accuracy["n_nonoccluded"] == eval_teddy["n_with_truth"]
+    assert accuracy["density"] == pytest.approx(eval_teddy["density"], abs=1e-12)
+    correct = (eval_teddy["precision_1px"] * eval_teddy["n_nonoccluded"]
+               + eval_teddy["occluded_precision_1px"] * eval_teddy["n_occluded"])
+    assert accuracy["correct_1px"] == round(correct)
+    assert report.accuracy["n_pairs"] == 1 and report.accuracy["correct_1px"] == round(correct)
+    line = report.brief().splitlines()[1]
+    assert line.startswith("accuracy on 1 pairs with ground truth: ") and "within 1 px" in line
+    # A re-run skips both pairs and still gives the accuracy (from report.json).
+    again = batch.match_pairs(pairs, tmp_path / "out", client)
+    assert again.skipped == 2 and again.accuracy["correct_1px"] == round(correct)
+
+
+@pytest.mark.parametrize("columns, reason", [
+    ("a,{l},{r},40,{l},0", "ground_truth_scale must be > 0"),
+    ("a,{l},{r},40,,4", "ground_truth_scale without ground_truth"),
+    ("a,{l},{r},40,nope.png,4", "ground_truth 'nope.png' is not a file"),
+], ids=["zero-scale", "scale-alone", "missing-truth"])
+def test_bad_ground_truth_is_refused(pairs_csv, tmp_path, capsys, columns, reason):
+    left, right = pairs_csv.parent / "p00_l.png", pairs_csv.parent / "p00_r.png"
+    path = write_pairs(tmp_path / "pairs.csv", "id,left,right,max_disparity,ground_truth,"
+                       "ground_truth_scale\n" + columns.format(l=left, r=right) + "\n")
+    assert reason in refused(capsys, "--pairs", path, "--out", tmp_path / "out")
+
+
+# ---- --scheduler: an address that does not answer is refused at once ------------------------
+
+def test_an_unreachable_scheduler_is_refused_quickly(pairs_csv, tmp_path, capsys):
+    with socket.socket() as closed:  # a port nobody listens on
+        closed.bind(("127.0.0.1", 0))
+        port = closed.getsockname()[1]
+    start = time.monotonic()
+    stderr = refused(capsys, "--pairs", pairs_csv, "--out", tmp_path / "out", "--scheduler",
+                     f"tcp://127.0.0.1:{port}")
+    assert time.monotonic() - start < 3, stderr
+    assert f"cannot reach the scheduler tcp://127.0.0.1:{port}: " in stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_silent_scheduler_is_refused_within_the_connect_timeout(pairs_csv, tmp_path, capsys):
+    with socket.socket() as silent:  # accepts connections, never answers dask's hello
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        start = time.monotonic()
+        stderr = refused(capsys, "--pairs", pairs_csv, "--out", tmp_path / "out", "--scheduler",
+                         f"tcp://127.0.0.1:{silent.getsockname()[1]}")
+    assert time.monotonic() - start < batch.CONNECT_TIMEOUT_S + 10, stderr
+    assert "cannot reach the scheduler" in stderr
