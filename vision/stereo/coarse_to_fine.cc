@@ -51,6 +51,9 @@ std::string CoarseToFineOptions::Check() const {
     return "coarse-to-fine min_megapixels must be >= 0";
   }
   if (band_margin < 0) return "coarse-to-fine band_margin must be >= 0";
+  if (!(coarse_feature_share > 0.0 && coarse_feature_share <= 1.0)) {
+    return "coarse-to-fine coarse_feature_share must be in (0, 1]";
+  }
   for (int h : support_half_sides) {
     if (h < 0 || h > 256) return "coarse-to-fine support half-sides must be in 0..256";
   }
@@ -80,6 +83,11 @@ CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_
   coarse.candidates.max_disparity = std::ceil(options.candidates.max_disparity / 2.0);
   coarse.min_confidence = 0.0;
   coarse.network_observer = nullptr;
+  // The half-size match only has to back the bands: a spread share of the features does.
+  const int coarse_cap = std::max(
+      1000, static_cast<int>(options.coarse_to_fine.coarse_feature_share * left_points.size()));
+  coarse.features.max_features =
+      options.features.max_features > 0 ? std::min(options.features.max_features, coarse_cap) : coarse_cap;
   MatchReport coarse_match = MatchStereo(left_half, right_half, nullptr, coarse, runtime);
   // Only the coarse matches a reverse search confirms back a band (the sub-pixel fit halves
   // their disparity's rounding error).

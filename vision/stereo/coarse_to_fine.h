@@ -29,6 +29,10 @@ struct CoarseToFineOptions {
   /// default leaves every pair up to 0.5 megapixels (the Middlebury and ETH3D pairs, the
   /// 640 x 480 cell) matched in one pass over the whole disparity range.
   double min_megapixels = 0.5;
+  /// The half-size match detects at most this share of the full-size left features (at least
+  /// 1,000; spread over the image, FeatureOptions::max_features): the bands need support near
+  /// every feature, not a match for every coarse edge pixel (docs/decisions.md).
+  double coarse_feature_share = 0.125;
   /// A band reaches this many levels beyond the disparities of the coarse matches that back it
   /// (each side): a coarse match's disparity, doubled, is within about 2 levels of the fine one.
   int band_margin = 3;
