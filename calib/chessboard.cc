@@ -1,5 +1,6 @@
 #include "calib/chessboard.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <opencv2/calib3d.hpp>
@@ -52,6 +53,28 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Ma
   std::vector<Eigen::Vector2d> points;
   for (const cv::Point2f& p : corners) points.emplace_back(p.x, p.y);
   return points;
+}
+
+void OrientChessboardCorners(const cv::Mat& grey, int rows, int cols,
+                             std::vector<Eigen::Vector2d>* corners) {
+  std::vector<Eigen::Vector2d>& c = *corners;
+  if (rows < 2 || cols < 3 || static_cast<int>(c.size()) != rows * cols) return;
+  const Eigen::Vector2d d_col = c[1] - c[0], d_row = c[cols] - c[0];
+  if (d_col.x() * d_row.y() - d_col.y() * d_row.x() > 0.0) {  // mirrored: reverse the rows
+    for (int r = 0; r < rows / 2; ++r) {
+      std::swap_ranges(c.begin() + r * cols, c.begin() + (r + 1) * cols,
+                       c.begin() + (rows - 1 - r) * cols);
+    }
+  }
+  // Mean grey at the centre of the square spanned by corners (0, col) and (1, col + 1).
+  auto square_grey = [&](int col) {
+    const Eigen::Vector2d centre = 0.25 * (c[col] + c[col + 1] + c[cols + col] + c[cols + col + 1]);
+    cv::Mat patch;
+    cv::getRectSubPix(grey, cv::Size(3, 3), cv::Point2f(static_cast<float>(centre.x()),
+                                                        static_cast<float>(centre.y())), patch);
+    return cv::mean(patch)[0];
+  };
+  if (square_grey(0) > square_grey(1)) std::reverse(c.begin(), c.end());  // turned 180 deg
 }
 
 namespace {
@@ -110,6 +133,9 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
     for (int camera = 0; camera < 2; ++camera) {
       found[camera] = DetectChessboardCorners(*pair_images[camera], options.rows, options.cols,
                                               options.subpixel_window);
+      if (found[camera] && options.orient_by_square_colour) {
+        OrientChessboardCorners(*pair_images[camera], options.rows, options.cols, &*found[camera]);
+      }
       if (!found[camera]) {
         views.skipped.push_back(camera == 0 ? options.left_images[pair]
                                             : options.right_images[pair]);
@@ -277,6 +303,7 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
       cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
   result.calibration = StereoFromIntrinsics(K, D, R, T, views.image_size[0]);
   StereoCalibration& calibration = result.calibration;
+  calibration.world_frame = "left camera";
   result.report.cameras[0].camera_centre = calibration.C1;
   result.report.cameras[1].camera_centre = calibration.C2;
   std::vector<Eigen::Vector2d> undistorted[2];

@@ -26,6 +26,10 @@ struct ChessboardOptions {
   int subpixel_window = 11;  ///< cornerSubPix window size (px), as in OpenCV's stereo_calib
   /// Pairs in which the board is found in both images; fewer is an error.
   int min_pairs = 3;
+  /// Put every detection in the board's own order (OrientChessboardCorners): both cameras then
+  /// label each corner alike, and a board lying on the table fixes its frame. Needs rows + cols
+  /// odd; off for the --target chessboard route (OpenCV's own order, as stereo_calib.cpp).
+  bool orient_by_square_colour = false;
 
   std::string Check() const;
 };
@@ -35,6 +39,14 @@ struct ChessboardOptions {
 std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Mat& image, int rows,
                                                                     int cols,
                                                                     int subpixel_window = 11);
+
+/// Reorders `corners` (row-major rows x cols, as cv::findChessboardCorners gives them) into the
+/// board's own frame: the board's +z (x along a row, y along a column) faces the camera, so
+/// cross(d_col, d_row) < 0 in pixels (else the rows are reversed), and the square between corners
+/// (0, 0) and (1, 1) is the dark one (else the order is reversed: the 180 deg turn). Unambiguous
+/// when rows + cols is odd (OpenCV's advice for such boards). `grey` is the image searched.
+void OrientChessboardCorners(const cv::Mat& grey, int rows, int cols,
+                             std::vector<Eigen::Vector2d>* corners);
 
 /// The images of a chessboard calibration (grey), in the order of ChessboardOptions' paths.
 struct ChessboardImages {
