@@ -315,6 +315,7 @@ CalibrationResult CalibrateBoardTarget(const BoardTarget& target,
   chessboard.square_mm = target.board.square_mm;
   chessboard.subpixel_window = options.subpixel_window;
   chessboard.orient_by_square_colour = true;
+  chessboard.fix_k3 = options.fix_k3;
   for (const BoardView& view : target.views) {
     chessboard.left_images.push_back(view.left_image);
     chessboard.right_images.push_back(view.right_image);

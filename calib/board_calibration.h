@@ -62,6 +62,9 @@ struct BoardCalibrationOptions {
   /// cornerSubPix half window (px): 5 (an 11 x 11 window) stays inside one square down to
   /// squares of 12 px.
   int subpixel_window = 5;
+  /// k1 k2 p1 p2 only (ChessboardOptions::fix_k3); false estimates k3 too (wide-angle lenses,
+  /// with views reaching the image corners).
+  bool fix_k3 = true;
   std::string Check() const;
 };
 

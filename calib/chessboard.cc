@@ -166,10 +166,10 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
 // and its report: every corner measured and reprojected, and the first view's overlay.
 CameraCalibrationReport CalibrateOneCamera(const ChessboardViews& views, int camera,
                                            const std::vector<cv::Point3f>& board, int cols,
-                                           cv::Mat* K, cv::Mat* D, double* rms) {
+                                           int flags, cv::Mat* K, cv::Mat* D, double* rms) {
   std::vector<cv::Mat> rvecs, tvecs;
   *rms = cv::calibrateCamera(views.object_points, views.corners[camera], views.image_size[camera],
-                             *K, *D, rvecs, tvecs);
+                             *K, *D, rvecs, tvecs, flags);
   CameraCalibrationReport camera_report;
   camera_report.camera = kCameraNames[camera];
   std::vector<Eigen::Vector2d> residuals;
@@ -293,6 +293,7 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
   double opencv_rms[2] = {0, 0};
   for (int camera = 0; camera < 2; ++camera) {
     result.report.cameras.push_back(CalibrateOneCamera(views, camera, board, options.cols,
+                                                       options.fix_k3 ? cv::CALIB_FIX_K3 : 0,
                                                        &K[camera], &D[camera],
                                                        &opencv_rms[camera]));
   }

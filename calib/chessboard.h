@@ -30,6 +30,10 @@ struct ChessboardOptions {
   /// label each corner alike, and a board lying on the table fixes its frame. Needs rows + cols
   /// odd; off for the --target chessboard route (OpenCV's own order, as stereo_calib.cpp).
   bool orient_by_square_colour = false;
+  /// Keep k3 = 0 (cv::CALIB_FIX_K3): a standard lens needs k1 k2 p1 p2 only, and views that do
+  /// not reach the image corners let a free k3 overfit (k3 = -17 on the rendered cell). Off for
+  /// --target chessboard (OpenCV's stereo_calib.cpp estimates k3).
+  bool fix_k3 = false;
 
   std::string Check() const;
 };
