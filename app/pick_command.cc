@@ -66,7 +66,9 @@ std::vector<std::string> WritePickOutputs(const PickArgs& args, const SensedPair
   calib::WriteFileAtomically(args.out, objects.dump(2) + "\n");
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(
-        args.overlay, vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1));
+        args.overlay,
+        OverlayInInputPixels(vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1),
+                             calibration));
   }
   if (!args.ply.empty()) {
     std::vector<int> labels(report.points_in_world.size(), -1);
