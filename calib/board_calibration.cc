@@ -316,6 +316,7 @@ CalibrationResult CalibrateBoardTarget(const BoardTarget& target,
   chessboard.subpixel_window = options.subpixel_window;
   chessboard.orient_by_square_colour = true;
   chessboard.fix_k3 = options.fix_k3;
+  chessboard.single_camera_views = true;
   for (const BoardView& view : target.views) {
     chessboard.left_images.push_back(view.left_image);
     chessboard.right_images.push_back(view.right_image);

@@ -98,6 +98,8 @@ std::vector<cv::Point3f> BoardPoints(const ChessboardOptions& options) {
 struct ChessboardViews {
   std::vector<std::vector<cv::Point3f>> object_points;
   std::vector<std::vector<cv::Point2f>> corners[2];
+  /// Views whose board only this camera shows (ChessboardOptions::single_camera_views).
+  std::vector<std::vector<cv::Point2f>> single_camera_corners[2];
   std::vector<std::string> skipped;
   cv::Size image_size[2];
   cv::Mat first_image[2];
@@ -141,15 +143,17 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
                                             : options.right_images[pair]);
       }
     }
-    if (!found[0] || !found[1]) continue;
-    views.object_points.push_back(board);
+    const bool both = found[0] && found[1];
+    if (!both && !options.single_camera_views) continue;
+    if (both) views.object_points.push_back(board);
     for (int camera = 0; camera < 2; ++camera) {
+      if (!found[camera]) continue;
       std::vector<cv::Point2f> view;
       for (const Eigen::Vector2d& p : *found[camera]) {
         view.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
       }
-      views.corners[camera].push_back(view);
-      if (views.first_image[camera].empty()) views.first_image[camera] = *pair_images[camera];
+      (both ? views.corners : views.single_camera_corners)[camera].push_back(view);
+      if (both && views.first_image[camera].empty()) views.first_image[camera] = *pair_images[camera];
     }
   }
   if (static_cast<int>(views.object_points.size()) < options.min_pairs) {
@@ -168,19 +172,24 @@ CameraCalibrationReport CalibrateOneCamera(const ChessboardViews& views, int cam
                                            const std::vector<cv::Point3f>& board, int cols,
                                            int flags, cv::Mat* K, cv::Mat* D, double* rms) {
   std::vector<cv::Mat> rvecs, tvecs;
-  *rms = cv::calibrateCamera(views.object_points, views.corners[camera], views.image_size[camera],
-                             *K, *D, rvecs, tvecs, flags);
+  std::vector<std::vector<cv::Point3f>> object_points = views.object_points;
+  std::vector<std::vector<cv::Point2f>> corners = views.corners[camera];
+  for (const auto& view : views.single_camera_corners[camera]) {
+    object_points.push_back(board);
+    corners.push_back(view);
+  }
+  *rms = cv::calibrateCamera(object_points, corners, views.image_size[camera], *K, *D, rvecs,
+                             tvecs, flags);
   CameraCalibrationReport camera_report;
   camera_report.camera = kCameraNames[camera];
   std::vector<Eigen::Vector2d> residuals;
-  for (size_t view = 0; view < views.object_points.size(); ++view) {
+  for (size_t view = 0; view < object_points.size(); ++view) {
     std::vector<cv::Point2f> projected;
-    cv::projectPoints(views.object_points[view], rvecs[view], tvecs[view], *K, *D, projected);
+    cv::projectPoints(object_points[view], rvecs[view], tvecs[view], *K, *D, projected);
     for (size_t i = 0; i < projected.size(); ++i) {
       CalibrationObservation observation;
       observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
-      observation.measured_px = Eigen::Vector2d(views.corners[camera][view][i].x,
-                                                views.corners[camera][view][i].y);
+      observation.measured_px = Eigen::Vector2d(corners[view][i].x, corners[view][i].y);
       observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
       observation.view = static_cast<int>(view);
       observation.label = "r" + std::to_string(static_cast<int>(i) / cols) + "c" +

@@ -34,6 +34,10 @@ struct ChessboardOptions {
   /// not reach the image corners let a free k3 overfit (k3 = -17 on the rendered cell). Off for
   /// --target chessboard (OpenCV's stereo_calib.cpp estimates k3).
   bool fix_k3 = false;
+  /// Views whose board only one camera shows still calibrate that camera's intrinsics (the
+  /// image corners, where distortion is largest, are seldom seen by both cameras at once); the
+  /// stereo step uses the pairs. Off for --target chessboard (stereo_calib.cpp uses pairs only).
+  bool single_camera_views = false;
 
   std::string Check() const;
 };

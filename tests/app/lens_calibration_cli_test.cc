@@ -97,7 +97,7 @@ TEST_F(LensCli, PickThroughTheLensFindsThePartsWithoutWarnings) {
 // `calibrate --target chessboard` on the same board images: world = the left camera.
 TEST_F(LensCli, PickRefusesALeftCameraFrameWithTheHint) {
   std::string left, right;
-  for (int i = 0; i < 12; ++i) {
+  for (int i = 0; fs::exists(Scene("target/board_left_" + std::to_string(i) + ".png")); ++i) {
     left += " " + Scene("target/board_left_" + std::to_string(i) + ".png");
     right += " " + Scene("target/board_right_" + std::to_string(i) + ".png");
   }

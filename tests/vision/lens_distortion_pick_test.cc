@@ -125,10 +125,19 @@ TEST(LensDistortionPick, AcceptanceAgainstThePinholeCell) {
     const CalibratedScene pinhole = RenderAndCalibrate(seed, {});
     const CalibratedScene distorted = RenderAndCalibrate(seed, kDistortion);
     const std::size_t parts = pinhole.scene.objects.size();
-    pinhole_dlt.Add(SenseAndScore(pinhole.scene, pinhole.dlt), parts);
-    pinhole_board.Add(SenseAndScore(pinhole.scene, pinhole.board), parts);
-    distorted_board.Add(SenseAndScore(distorted.scene, distorted.board), parts);
-    distorted_dlt.Add(SenseAndScore(distorted.scene, distorted.dlt), parts);
+    const TruthComparison scored[4] = {SenseAndScore(pinhole.scene, pinhole.dlt),
+                                       SenseAndScore(pinhole.scene, pinhole.board),
+                                       SenseAndScore(distorted.scene, distorted.board),
+                                       SenseAndScore(distorted.scene, distorted.dlt)};
+    Figures* figures[4] = {&pinhole_dlt, &pinhole_board, &distorted_board, &distorted_dlt};
+    std::cout << "seed " << seed << " (" << parts << " parts), worst centroid / false:";
+    for (int route = 0; route < 4; ++route) {
+      figures[route]->Add(scored[route], parts);
+      Figures one;
+      one.Add(scored[route], parts);
+      std::cout << " " << one.Percentile(1.0) << " / " << one.false_objects;
+    }
+    std::cout << "\n";
   }
   pinhole_dlt.Print("pinhole, circle-plate DLT");
   pinhole_board.Print("pinhole, board");

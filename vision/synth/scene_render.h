@@ -166,8 +166,9 @@ struct RenderedTarget {
 };
 
 /// The board's world poses in target/: the first lies on the table (it fixes the world frame),
-/// the others are lifted 40-150 mm and tilted 14-28 deg towards the images' corners
-/// (tests/vision/board_render_test.cc checks that every one is seen whole by both cameras).
+/// 11 are lifted 40-150 mm and tilted 14-28 deg, 8 lie 30 mm up near the images' corners (some
+/// seen whole by one camera only: they calibrate its lens)
+/// (RenderTargetPlacements refuses a view that neither camera sees whole).
 std::vector<calib::BoardView> BoardViewPoses(const SceneRenderOptions& options);
 
 RenderedTarget RenderTargetPlacements(const calib::StereoCalibration& cameras,
