@@ -2,12 +2,14 @@
 // write CAL.yml (+ report and overlays) atomically. See docs/calibration.md.
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "app/cli_support.h"
 #include "app/commands.h"
+#include "calib/board_calibration.h"
 #include "calib/calibration_report.h"
 #include "calib/chessboard.h"
 #include "calib/circle_calibration.h"
@@ -19,7 +21,13 @@ namespace {
 constexpr const char* kCalibrateHelp =
     R"(Stereo calibration: writes CAL.yml (OpenCV YAML: P1, P2, F, C1, C2, error figures).
 
-Examples, the three ways:
+Examples:
+  calibrate --dir TARGET_DIR --out CAL.yml [--report CALIB.json]
+      The route TARGET_DIR/target.yml names: with `board: chessboard` (as `render` writes), a
+      chessboard in several poses plus views of it lying on the table: intrinsics with lens
+      distortion (K1 D1 K2 D2), stereo R T, and the world frame = the table (z = 0 on it, z
+      up, mm) from the table views' world poses; CAL.yml adds world_frame: table and
+      world_from_left_camera. Without `board:`, as --target circles --dir.
   calibrate --target circles --dir TARGET_DIR --out CAL.yml [--report CALIB.json]
       The thesis's circle plate (rows x cols circles, default 3 x 3, 25 mm pitch) photographed by
       both cameras at two or more known heights. TARGET_DIR/target.yml (OpenCV YAML):
@@ -101,6 +109,27 @@ calib::CalibrationResult CalibrateFromCircles(const CalibrateArguments& args,
   return calib::CalibrateCircleTarget(images, options);
 }
 
+// `--dir` alone: the route target.yml names - the board (lens distortion, table frame) when it
+// has `board:`, else the circle plate as `--target circles --dir`.
+calib::CalibrationResult CalibrateFromTargetDir(const CalibrateArguments& args,
+                                               const calib::DltOptions& dlt_options) {
+  const std::optional<calib::BoardTarget> board =
+      AsSetupError("--dir", [&] { return calib::LoadBoardTarget(args.dir); });
+  if (!board) return CalibrateFromCircles(args, dlt_options);
+  calib::BoardCalibrationOptions options;
+  RefuseIf(options.Check());
+  // Every image is read before any detection: a missing or unreadable one is a refused setup.
+  AsSetupError("--dir", [&] {
+    for (const calib::BoardView& view : board->views) {
+      calib::ChessboardOptions paths;
+      paths.left_images = {view.left_image};
+      paths.right_images = {view.right_image};
+      calib::LoadChessboardImages(paths);
+    }
+  });
+  return calib::CalibrateBoardTarget(*board, options);
+}
+
 calib::CalibrationResult CalibrateFromChessboard(const CalibrateArguments& args) {
   if (args.rows <= 0 || args.cols <= 0) {
     throw std::invalid_argument("--target chessboard needs --rows and --cols (inner corners)");
@@ -131,9 +160,12 @@ void RunCalibrate(const CalibrateArguments& args) {
     result = CalibrateFromCircles(args, dlt_options);
   } else if (args.target == "chessboard") {
     result = CalibrateFromChessboard(args);
+  } else if (!args.dir.empty()) {
+    result = CalibrateFromTargetDir(args, dlt_options);
   } else {
     throw std::invalid_argument(
-        "say what to calibrate from: --target circles|chessboard, or --points-left/--points-right");
+        "say what to calibrate from: --dir TARGET_DIR, --target circles|chessboard, or "
+        "--points-left/--points-right");
   }
   const std::vector<std::string> written =
       calib::WriteCalibrationOutputs(result, args.out, args.report);
@@ -151,7 +183,7 @@ void AddCalibrateCommand(CLI::App& app) {
   auto args = std::make_shared<CalibrateArguments>();
   cmd->add_option("--target", args->target, "circles | chessboard")
       ->check(CLI::IsMember({"circles", "chessboard"}));
-  cmd->add_option("--dir", args->dir, "TARGET_DIR with target.yml and the images (circles)");
+  cmd->add_option("--dir", args->dir, "TARGET_DIR with target.yml and the images (board or circles)");
   cmd->add_option("--out", args->out, "CAL.yml to write (OpenCV YAML)")->required();
   cmd->add_option("--report", args->report, "CALIB.json report to write (optional)");
   cmd->add_option("--rows", args->rows, "chessboard inner corners per column");

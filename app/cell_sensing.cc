@@ -159,6 +159,11 @@ cv::Mat OverlayImageOf(const SensedPair& pair) {
   return pair.left_grey.data == pair.left.grey.data ? pair.left.original : pair.left_grey;
 }
 
+cv::Mat OverlayInInputPixels(const cv::Mat& overlay, const calib::StereoCalibration& calibration) {
+  if (!calibration.intrinsics || calibration.intrinsics->D1.empty()) return overlay;
+  return vision::RedistortImage(overlay, calibration.intrinsics->K1, calibration.intrinsics->D1);
+}
+
 std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report) {
   std::vector<robot::SensedObject> objects;
   int id = 1;

@@ -53,6 +53,10 @@ nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& f
 /// calibration carries distortion (P1 then refers to undistorted pixels).
 cv::Mat OverlayImageOf(const SensedPair& pair);
 
+/// An overlay drawn on OverlayImageOf's image, in the input image's pixels: resampled back
+/// through the lens when the calibration carries distortion, else as drawn.
+cv::Mat OverlayInInputPixels(const cv::Mat& overlay, const calib::StereoCalibration& calibration);
+
 /// The robot side's view of the parts (ids 1.. in the report's order, tallest first).
 std::vector<robot::SensedObject> SensedObjectsOf(const vision::PositionSensingReport& report);
 

@@ -17,6 +17,7 @@
 #include "vision/sensing/plots.h"
 #include "vision/sensing/ply.h"
 #include "vision/sensing/position_sensing.h"
+#include "vision/sensing/sensing_hints.h"
 #include "vision/stereo/setup_checks.h"
 #include "vision/sensing/swapped_cameras.h"
 
@@ -33,13 +34,18 @@ struct PickArgs {
 
 // No part: were the images given the wrong way round? Swapped cameras put the triangulated
 // points behind them, or the images correlate far better the other way round.
-void ThrowIfLooksSwapped(const SensedPair& pair, const calib::StereoCalibration& calibration,
-                         const PickArgs& args) {
-  const auto& counts = pair.report.triangulation;
+// The pair probed along its epipolar lines both ways round (CompareWithSwappedCameras): tells a
+// swapped pair and a calibration of another rig.
+vision::SwapComparison ProbeEpipolarLines(const SensedPair& pair,
+                                          const calib::StereoCalibration& calibration,
+                                          const PickArgs& args) {
   const std::pair<double, double> z_range =
       args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
-  const vision::SwapComparison swap =
-      vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+  return vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+}
+
+void ThrowIfLooksSwapped(const SensedPair& pair, const vision::SwapComparison& swap) {
+  const auto& counts = pair.report.triangulation;
   if ((counts.behind_camera > 0 && counts.behind_camera >= counts.accepted) || swap.looks_swapped) {
     throw std::runtime_error(
         "no parts, and --left and --right look swapped: " + std::to_string(counts.behind_camera) +
@@ -52,13 +58,17 @@ void ThrowIfLooksSwapped(const SensedPair& pair, const calib::StereoCalibration&
 
 // Writes every output asked for (each atomically) and returns their paths, in order.
 std::vector<std::string> WritePickOutputs(const PickArgs& args, const SensedPair& pair,
-                                          const calib::StereoCalibration& calibration) {
+                                          const calib::StereoCalibration& calibration,
+                                          const std::vector<std::string>& warnings) {
   const vision::PositionSensingReport& report = pair.report;
-  calib::WriteFileAtomically(
-      args.out, ObjectsFileJson(pair, args.cell, args.left, args.right, args.calib).dump(2) + "\n");
+  nlohmann::json objects = ObjectsFileJson(pair, args.cell, args.left, args.right, args.calib);
+  objects["warnings"] = warnings;
+  calib::WriteFileAtomically(args.out, objects.dump(2) + "\n");
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(
-        args.overlay, vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1));
+        args.overlay,
+        OverlayInInputPixels(vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1),
+                             calibration));
   }
   if (!args.ply.empty()) {
     std::vector<int> labels(report.points_in_world.size(), -1);
@@ -156,14 +166,24 @@ void RunPick(PickArgs& args) {
       OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
   const calib::StereoCalibration calibration =
       AsSetupError([&] { return calib::LoadCalibration(args.calib); });
+  if (const std::string problem = vision::TableFrameProblem(calibration); !problem.empty()) {
+    throw std::invalid_argument("--calib '" + args.calib + "': " + problem);
+  }
   robot::RobotFrame frame;
   std::unique_ptr<robot::RobotLink> link;
   if (!args.link.robot.empty()) link = args.link.Open(&frame);
   const SensedPair pair =
       SenseCellPair(args.left, args.right, calibration, args.calib, args.cell, runtime.get());
-  if (pair.report.objects.empty()) ThrowIfLooksSwapped(pair, calibration, args);
+  const vision::SwapComparison probe = ProbeEpipolarLines(pair, calibration, args);
+  if (pair.report.objects.empty()) ThrowIfLooksSwapped(pair, probe);
+  // Never "0 parts" silently, nor parts from a calibration that does not fit the pair: why, on
+  // stderr and in OBJECTS.json's "warnings".
+  std::vector<std::string> warnings;
+  if (std::string fit = vision::CalibrationFitProblem(probe); !fit.empty()) warnings.push_back(fit);
+  if (warnings.empty()) warnings = vision::ExplainNoParts(pair.report, args.cell.sensing);
+  for (const std::string& warning : warnings) std::cerr << "hnnstereo: warning: " << warning << "\n";
   // Everything is computed before anything is written.
-  const std::vector<std::string> written = WritePickOutputs(args, pair, calibration);
+  const std::vector<std::string> written = WritePickOutputs(args, pair, calibration, warnings);
   if (!pair.report.match.engine_notice.empty()) {
     std::cerr << "hnnstereo: notice: " << pair.report.match.engine_notice << "\n";
   }

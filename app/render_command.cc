@@ -7,9 +7,11 @@
 #include <string>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "app/cli_support.h"
 #include "app/commands.h"
+#include "vision/synth/lens_model.h"
 #include "vision/synth/scene_render.h"
 
 namespace hnnstereo::app {
@@ -18,7 +20,7 @@ namespace {
 struct RenderArgs {
   vision::SceneRenderOptions options;
   std::string out;
-  std::string size_range, height_range, brightness, texture = "random", resolution;
+  std::string size_range, height_range, brightness, texture = "random", resolution, distortion;
   bool min_gap_given = false;
   bool quiet = false;
 };
@@ -32,6 +34,30 @@ std::pair<double, double> ParseRange(const std::string& flag, const std::string&
     throw std::invalid_argument(flag + " must be MIN,MAX with MIN <= MAX (got '" + text + "')");
   }
   return {low, high};
+}
+
+// "k1,k2,p1,p2[,k3]" -> the coefficients; throws std::invalid_argument naming --distortion.
+std::vector<double> ParseDistortion(const std::string& text) {
+  std::vector<double> coefficients;
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    std::size_t used = 0;
+    double value = 0.0;
+    try {
+      value = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size()) {
+      throw std::invalid_argument("--distortion must be k1,k2,p1,p2[,k3] (got '" + text + "')");
+    }
+    coefficients.push_back(value);
+  }
+  if (const std::string problem = vision::CheckDistortion(coefficients); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  return coefficients;
 }
 
 void ResolveRenderArgs(RenderArgs& args) {
@@ -53,6 +79,7 @@ void ResolveRenderArgs(RenderArgs& args) {
       throw std::invalid_argument(std::string("--resolution: ") + error.what());
     }
   }
+  if (!args.distortion.empty()) o.cameras.distortion = ParseDistortion(args.distortion);
   if (const auto texture = vision::ParseTopTexture(args.texture)) {
     o.top_texture = *texture;
   } else {
@@ -120,7 +147,8 @@ void AddRenderCommand(CLI::App& app) {
       "  hnnstereo pick --left scene7/left.png --right scene7/right.png \\\n"
       "      --calib scene7/calibrated.yml --out scene7/objects.json\n"
       "Writes DIR/left.png, right.png, calib.yml (the true cameras), truth.json (OBJECTS.json "
-      "schema plus shape and size; tallest first) and target/ (images + target.yml).");
+      "schema plus shape and size; tallest first) and target/ (circle plate and chessboard "
+      "images + target.yml: `calibrate --dir DIR/target` or `--target circles --dir`).");
   cmd->add_option("--seed", args->options.seed, "Seed: the same seed gives the same scene")
       ->check(CLI::Validator(
           [](std::string& value) {
@@ -157,6 +185,10 @@ void AddRenderCommand(CLI::App& app) {
   cmd->add_option("--resolution", args->resolution,
                   "WxH: both cameras' image size (px; e.g. 1280x1024, 2048x1536, 2448x2048), "
                   "their focal lengths scaled with the width (default 640x480)");
+  cmd->add_option("--distortion", args->distortion,
+                  "k1,k2,p1,p2[,k3]: Brown-Conrady lens distortion of both cameras (OpenCV "
+                  "order; default none). calib.yml then carries K1 D1 K2 D2 R T; calibrate "
+                  "--dir DIR/target models it from the board images");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
   cmd->callback([args] { RunRender(*args); });
 }

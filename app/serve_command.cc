@@ -21,6 +21,7 @@
 #include "app/robot_link_flags.h"
 #include "common/atomic_file.h"
 #include "robot/cell_loop.h"
+#include "vision/sensing/sensing_hints.h"
 #include "web/cell_status.h"
 
 namespace hnnstereo::app {
@@ -101,6 +102,9 @@ class CellSensor {
     }
     args.cell.Resolve();
     calibration_ = AsSetupError([&] { return calib::LoadCalibration(args.calib); });
+    if (const std::string problem = vision::TableFrameProblem(calibration_); !problem.empty()) {
+      throw std::invalid_argument("--calib '" + args.calib + "': " + problem);
+    }
     runtime_ = OpenRuntimeFor(args.cell.sensing.matcher.engine, args.cell.flags.device);
     WarmUpCellKernels(runtime_.get(), args.cell.sensing.matcher);
   }

@@ -87,6 +87,9 @@ std::string StereoCalibration::Check() const {
     return "image size " + std::to_string(image_width) + "x" + std::to_string(image_height) +
            " is beyond the limit of " + std::to_string(max_side) + " px per side";
   }
+  if (world_from_left_camera && !world_from_left_camera->allFinite()) {
+    return "world_from_left_camera has non-finite values";
+  }
   if (intrinsics) {
     const Intrinsics& intr = *intrinsics;
     auto finite = [](const std::vector<double>& values) {
@@ -199,6 +202,10 @@ StereoCalibration LoadCalibration(const std::string& path) {
         *size = static_cast<int>(value);
       }
       if (!fs["units"].empty()) fs["units"] >> cal.units;
+      if (fs["world_frame"].isString()) fs["world_frame"] >> cal.world_frame;
+      if (!fs["world_from_left_camera"].empty()) {
+        cal.world_from_left_camera = ReadMatrix<4, 4>(fs, "world_from_left_camera", path, true);
+      }
       if (!fs["rectified"].empty()) {
         // As a double: OpenCV's int read rounds a huge real without a range check.
         cal.rectified = static_cast<double>(fs["rectified"]) != 0.0;
@@ -247,6 +254,10 @@ void SaveCalibration(const StereoCalibration& cal, const std::string& path) {
     fs << "units" << cal.units;
     fs << "image_width" << cal.image_width << "image_height" << cal.image_height;
     fs << "rectified" << static_cast<int>(cal.rectified);
+    if (!cal.world_frame.empty()) fs << "world_frame" << cal.world_frame;
+    if (cal.world_from_left_camera) {
+      fs << "world_from_left_camera" << to_mat(*cal.world_from_left_camera);
+    }
     fs << "P1" << to_mat(cal.P1) << "P2" << to_mat(cal.P2);
     fs << "F" << to_mat(cal.F);
     fs << "F_right_to_left" << to_mat(cal.F.transpose());

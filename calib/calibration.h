@@ -30,6 +30,12 @@ struct StereoCalibration {
   std::string units = "mm";
   bool rectified = false;                 ///< true for a rectified pair (Middlebury calib.txt)
   std::optional<Intrinsics> intrinsics;   ///< present after a chessboard calibration
+  /// What the world frame is, as the calibrator knows it (CAL.yml `world_frame`): "table" (z = 0
+  /// on the table, z up), "left camera" (--target chessboard), empty when not recorded.
+  std::string world_frame;
+  /// The left camera's pose in the table frame (CAL.yml `world_from_left_camera`, 4x4, mm), from
+  /// a board lying on the table; absent otherwise.
+  std::optional<Eigen::Matrix4d> world_from_left_camera;
   /// Error figures written by the calibrator (name -> value), e.g. "left_rms_px".
   std::vector<std::pair<std::string, double>> error_figures;
 

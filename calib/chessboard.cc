@@ -1,5 +1,6 @@
 #include "calib/chessboard.h"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <opencv2/calib3d.hpp>
@@ -54,6 +55,28 @@ std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Ma
   return points;
 }
 
+void OrientChessboardCorners(const cv::Mat& grey, int rows, int cols,
+                             std::vector<Eigen::Vector2d>* corners) {
+  std::vector<Eigen::Vector2d>& c = *corners;
+  if (rows < 2 || cols < 3 || static_cast<int>(c.size()) != rows * cols) return;
+  const Eigen::Vector2d d_col = c[1] - c[0], d_row = c[cols] - c[0];
+  if (d_col.x() * d_row.y() - d_col.y() * d_row.x() > 0.0) {  // mirrored: reverse the rows
+    for (int r = 0; r < rows / 2; ++r) {
+      std::swap_ranges(c.begin() + r * cols, c.begin() + (r + 1) * cols,
+                       c.begin() + (rows - 1 - r) * cols);
+    }
+  }
+  // Mean grey at the centre of the square spanned by corners (0, col) and (1, col + 1).
+  auto square_grey = [&](int col) {
+    const Eigen::Vector2d centre = 0.25 * (c[col] + c[col + 1] + c[cols + col] + c[cols + col + 1]);
+    cv::Mat patch;
+    cv::getRectSubPix(grey, cv::Size(3, 3), cv::Point2f(static_cast<float>(centre.x()),
+                                                        static_cast<float>(centre.y())), patch);
+    return cv::mean(patch)[0];
+  };
+  if (square_grey(0) > square_grey(1)) std::reverse(c.begin(), c.end());  // turned 180 deg
+}
+
 namespace {
 
 const char* const kCameraNames[2] = {"left", "right"};
@@ -75,6 +98,8 @@ std::vector<cv::Point3f> BoardPoints(const ChessboardOptions& options) {
 struct ChessboardViews {
   std::vector<std::vector<cv::Point3f>> object_points;
   std::vector<std::vector<cv::Point2f>> corners[2];
+  /// Views whose board only this camera shows (ChessboardOptions::single_camera_views).
+  std::vector<std::vector<cv::Point2f>> single_camera_corners[2];
   std::vector<std::string> skipped;
   cv::Size image_size[2];
   cv::Mat first_image[2];
@@ -110,20 +135,25 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
     for (int camera = 0; camera < 2; ++camera) {
       found[camera] = DetectChessboardCorners(*pair_images[camera], options.rows, options.cols,
                                               options.subpixel_window);
+      if (found[camera] && options.orient_by_square_colour) {
+        OrientChessboardCorners(*pair_images[camera], options.rows, options.cols, &*found[camera]);
+      }
       if (!found[camera]) {
         views.skipped.push_back(camera == 0 ? options.left_images[pair]
                                             : options.right_images[pair]);
       }
     }
-    if (!found[0] || !found[1]) continue;
-    views.object_points.push_back(board);
+    const bool both = found[0] && found[1];
+    if (!both && !options.single_camera_views) continue;
+    if (both) views.object_points.push_back(board);
     for (int camera = 0; camera < 2; ++camera) {
+      if (!found[camera]) continue;
       std::vector<cv::Point2f> view;
       for (const Eigen::Vector2d& p : *found[camera]) {
         view.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
       }
-      views.corners[camera].push_back(view);
-      if (views.first_image[camera].empty()) views.first_image[camera] = *pair_images[camera];
+      (both ? views.corners : views.single_camera_corners)[camera].push_back(view);
+      if (both && views.first_image[camera].empty()) views.first_image[camera] = *pair_images[camera];
     }
   }
   if (static_cast<int>(views.object_points.size()) < options.min_pairs) {
@@ -140,21 +170,26 @@ ChessboardViews CollectViews(const ChessboardOptions& options,
 // and its report: every corner measured and reprojected, and the first view's overlay.
 CameraCalibrationReport CalibrateOneCamera(const ChessboardViews& views, int camera,
                                            const std::vector<cv::Point3f>& board, int cols,
-                                           cv::Mat* K, cv::Mat* D, double* rms) {
+                                           int flags, cv::Mat* K, cv::Mat* D, double* rms) {
   std::vector<cv::Mat> rvecs, tvecs;
-  *rms = cv::calibrateCamera(views.object_points, views.corners[camera], views.image_size[camera],
-                             *K, *D, rvecs, tvecs);
+  std::vector<std::vector<cv::Point3f>> object_points = views.object_points;
+  std::vector<std::vector<cv::Point2f>> corners = views.corners[camera];
+  for (const auto& view : views.single_camera_corners[camera]) {
+    object_points.push_back(board);
+    corners.push_back(view);
+  }
+  *rms = cv::calibrateCamera(object_points, corners, views.image_size[camera], *K, *D, rvecs,
+                             tvecs, flags);
   CameraCalibrationReport camera_report;
   camera_report.camera = kCameraNames[camera];
   std::vector<Eigen::Vector2d> residuals;
-  for (size_t view = 0; view < views.object_points.size(); ++view) {
+  for (size_t view = 0; view < object_points.size(); ++view) {
     std::vector<cv::Point2f> projected;
-    cv::projectPoints(views.object_points[view], rvecs[view], tvecs[view], *K, *D, projected);
+    cv::projectPoints(object_points[view], rvecs[view], tvecs[view], *K, *D, projected);
     for (size_t i = 0; i < projected.size(); ++i) {
       CalibrationObservation observation;
       observation.point3D_in_world = Eigen::Vector3d(board[i].x, board[i].y, board[i].z);
-      observation.measured_px = Eigen::Vector2d(views.corners[camera][view][i].x,
-                                                views.corners[camera][view][i].y);
+      observation.measured_px = Eigen::Vector2d(corners[view][i].x, corners[view][i].y);
       observation.reprojected_px = Eigen::Vector2d(projected[i].x, projected[i].y);
       observation.view = static_cast<int>(view);
       observation.label = "r" + std::to_string(static_cast<int>(i) / cols) + "c" +
@@ -267,6 +302,7 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
   double opencv_rms[2] = {0, 0};
   for (int camera = 0; camera < 2; ++camera) {
     result.report.cameras.push_back(CalibrateOneCamera(views, camera, board, options.cols,
+                                                       options.fix_k3 ? cv::CALIB_FIX_K3 : 0,
                                                        &K[camera], &D[camera],
                                                        &opencv_rms[camera]));
   }
@@ -277,6 +313,7 @@ CalibrationResult CalibrateChessboard(const ChessboardOptions& options,
       cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6));
   result.calibration = StereoFromIntrinsics(K, D, R, T, views.image_size[0]);
   StereoCalibration& calibration = result.calibration;
+  calibration.world_frame = "left camera";
   result.report.cameras[0].camera_centre = calibration.C1;
   result.report.cameras[1].camera_centre = calibration.C2;
   std::vector<Eigen::Vector2d> undistorted[2];

@@ -26,6 +26,18 @@ struct ChessboardOptions {
   int subpixel_window = 11;  ///< cornerSubPix window size (px), as in OpenCV's stereo_calib
   /// Pairs in which the board is found in both images; fewer is an error.
   int min_pairs = 3;
+  /// Put every detection in the board's own order (OrientChessboardCorners): both cameras then
+  /// label each corner alike, and a board lying on the table fixes its frame. Needs rows + cols
+  /// odd; off for the --target chessboard route (OpenCV's own order, as stereo_calib.cpp).
+  bool orient_by_square_colour = false;
+  /// Keep k3 = 0 (cv::CALIB_FIX_K3): a standard lens needs k1 k2 p1 p2 only, and views that do
+  /// not reach the image corners let a free k3 overfit (k3 = -17 on the rendered cell). Off for
+  /// --target chessboard (OpenCV's stereo_calib.cpp estimates k3).
+  bool fix_k3 = false;
+  /// Views whose board only one camera shows still calibrate that camera's intrinsics (the
+  /// image corners, where distortion is largest, are seldom seen by both cameras at once); the
+  /// stereo step uses the pairs. Off for --target chessboard (stereo_calib.cpp uses pairs only).
+  bool single_camera_views = false;
 
   std::string Check() const;
 };
@@ -35,6 +47,14 @@ struct ChessboardOptions {
 std::optional<std::vector<Eigen::Vector2d>> DetectChessboardCorners(const cv::Mat& image, int rows,
                                                                     int cols,
                                                                     int subpixel_window = 11);
+
+/// Reorders `corners` (row-major rows x cols, as cv::findChessboardCorners gives them) into the
+/// board's own frame: the board's +z (x along a row, y along a column) faces the camera, so
+/// cross(d_col, d_row) < 0 in pixels (else the rows are reversed), and the square between corners
+/// (0, 0) and (1, 1) is the dark one (else the order is reversed: the 180 deg turn). Unambiguous
+/// when rows + cols is odd (OpenCV's advice for such boards). `grey` is the image searched.
+void OrientChessboardCorners(const cv::Mat& grey, int rows, int cols,
+                             std::vector<Eigen::Vector2d>* corners);
 
 /// The images of a chessboard calibration (grey), in the order of ChessboardOptions' paths.
 struct ChessboardImages {

@@ -242,7 +242,8 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir) {
   return target;
 }
 
-void SaveTargetDescription(const TargetDescription& target, const std::string& path) {
+void SaveTargetDescription(const TargetDescription& target, const std::string& path,
+                           const std::function<void(cv::FileStorage*)>& more_keys) {
   WriteAtomically(path, [&](const std::string& temporary) {
     cv::FileStorage storage(temporary, cv::FileStorage::WRITE | cv::FileStorage::FORMAT_YAML);
     if (!storage.isOpened()) throw std::runtime_error("cannot open '" + path + "' for writing");
@@ -260,6 +261,7 @@ void SaveTargetDescription(const TargetDescription& target, const std::string& p
               << "world_from_target" << pose << "}";
     }
     storage << "]";
+    if (more_keys) more_keys(&storage);
     storage.release();
   });
 }

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -39,7 +40,9 @@ TargetDescription LoadTargetDirectory(const std::string& target_dir);
 
 /// Writes `target` as a target.yml (atomically); image paths are written as given, poses as
 /// `world_from_target` 4x4 matrices. Used by synthetic scene renderers and tests.
-void SaveTargetDescription(const TargetDescription& target, const std::string& path);
+/// `more_keys`, when given, writes further keys after the circle ones (the board's).
+void SaveTargetDescription(const TargetDescription& target, const std::string& path,
+                           const std::function<void(cv::FileStorage*)>& more_keys = {});
 
 /// The rotation chosen per view for a symmetric grid, and how it was decided.
 struct GridRotationChoice {

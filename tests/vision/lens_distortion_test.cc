@@ -4,8 +4,11 @@
 #include <Eigen/Core>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include "vision/sensing/position_sensing.h"
 #include "vision/stereo/lens_distortion.h"
+#include "vision/synth/scene_render.h"
 
 namespace hnnstereo::vision {
 namespace {
@@ -41,6 +44,41 @@ TEST(UndistortPoints, InvertsDistortPoints) {
     EXPECT_NEAR((back[t] - undistorted[t]).norm(), 0.0, 0.05) << t;
   }
   EXPECT_TRUE(UndistortPoints({}, K, D).empty());
+}
+
+// An overlay drawn in undistorted pixels lands, resampled, where the input image shows the point.
+TEST(RedistortImage, PutsAnUndistortedMarkAtItsInputPixel) {
+  Eigen::Matrix3d K;
+  K << 1100, 0, 319.5, 0, 1100, 239.5, 0, 0, 1;
+  const std::vector<double> D = {-0.25, 0.08, 0.001, -0.001};
+  const Eigen::Vector2f input(600.0f, 40.0f);  // near a corner: about 9 px of distortion
+  const Eigen::Vector2f ideal = UndistortPoints({input}, K, D)[0];
+  ASSERT_GT((ideal - input).norm(), 5.0f);
+  cv::Mat overlay(480, 640, CV_8U, cv::Scalar(0));
+  cv::circle(overlay, cv::Point(static_cast<int>(std::lround(ideal.x())),
+                                static_cast<int>(std::lround(ideal.y()))), 3, cv::Scalar(255), -1);
+  const cv::Mat original = RedistortImage(overlay, K, D);
+  const cv::Moments moments = cv::moments(original);
+  const Eigen::Vector2d centre(moments.m10 / moments.m00, moments.m01 / moments.m00);
+  EXPECT_LT((centre - input.cast<double>()).norm(), 1.0);
+}
+
+// The library refuses a calibration for another image size, as every command does.
+TEST(SensePositions, RefusesACalibrationForAnotherImageSize) {
+  SceneRenderOptions options;
+  options.seed = 3;
+  options.num_objects = 1;
+  const RenderedScene scene = RenderScene(options);
+  calib::StereoCalibration other = scene.cameras;
+  other.image_width = 1280;
+  other.image_height = 1024;
+  try {
+    SensePositions(scene.left, scene.right, other, PositionSensingOptions{}, nullptr);
+    FAIL() << "accepted a 1280x1024 calibration for 640x480 images";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("is for 1280x1024 images"), std::string::npos)
+        << error.what();
+  }
 }
 
 }  // namespace

@@ -737,6 +737,11 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
     throw std::invalid_argument("position sensing needs the cell's CAL.yml (world frame with the "
                                 "table at z = 0), not a rectified calib.txt");
   }
+  // P and F hold for the calibrated image size only.
+  if (const std::string problem = calibration.ImageSizeProblem(left_grey.cols, left_grey.rows);
+      !problem.empty()) {
+    throw std::invalid_argument("the calibration " + problem);
+  }
   // One image given twice would give a fake part at a fake height (vision/setup_checks.h).
   CheckDistinctViews(left_grey, right_grey);
   MatchReport match = MatchStereo(left_grey, right_grey, &calibration, options.matcher, runtime);

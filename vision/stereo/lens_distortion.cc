@@ -23,6 +23,22 @@ cv::Mat UndistortImage(const cv::Mat& image, const Eigen::Matrix3d& K,
   return undistorted;
 }
 
+cv::Mat RedistortImage(const cv::Mat& undistorted, const Eigen::Matrix3d& K,
+                       const std::vector<double>& distortion) {
+  std::vector<cv::Point2f> pixels;
+  pixels.reserve(undistorted.total());
+  for (int v = 0; v < undistorted.rows; ++v) {
+    for (int u = 0; u < undistorted.cols; ++u) pixels.emplace_back(u, v);
+  }
+  std::vector<cv::Point2f> ideal;
+  cv::undistortPoints(pixels, ideal, CameraMatrix(K), cv::Mat(distortion, true), cv::noArray(),
+                      CameraMatrix(K), cv::TermCriteria(cv::TermCriteria::COUNT, 20, 0.0));
+  const cv::Mat map(undistorted.rows, undistorted.cols, CV_32FC2, ideal.data());
+  cv::Mat original;
+  cv::remap(undistorted, original, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  return original;
+}
+
 std::vector<Eigen::Vector2f> DistortPoints(const std::vector<Eigen::Vector2f>& undistorted,
                                            const Eigen::Matrix3d& K,
                                            const std::vector<double>& distortion) {

@@ -12,6 +12,12 @@ namespace hnnstereo::vision {
 cv::Mat UndistortImage(const cv::Mat& image, const Eigen::Matrix3d& K,
                        const std::vector<double>& distortion);
 
+/// An image in undistorted pixels (camera matrix K; e.g. an overlay drawn on UndistortImage's
+/// output) resampled back to the pixels of the original image: each original pixel takes the
+/// undistorted image at its UndistortPoints position (bilinear).
+cv::Mat RedistortImage(const cv::Mat& undistorted, const Eigen::Matrix3d& K,
+                       const std::vector<double>& distortion);
+
 /// Undistorted pixels (camera matrix K) back to the distorted pixels of the original image.
 std::vector<Eigen::Vector2f> DistortPoints(const std::vector<Eigen::Vector2f>& undistorted,
                                            const Eigen::Matrix3d& K,

@@ -15,7 +15,9 @@
 #include <stdexcept>
 
 #include "common/atomic_file.h"
+#include "vision/synth/board_render.h"
 #include "vision/synth/circle_target_render.h"
+#include "vision/synth/lens_model.h"
 #include "common/image.h"
 
 namespace hnnstereo::vision {
@@ -394,6 +396,8 @@ std::string PickCellCameraOptions::Check() const {
     out << "PickCellCameraOptions.focal_px must be positive (is " << focal_px << ")";
   } else if (!(left_centre_mm.z() > 0.0 && right_centre_mm.z() > 0.0)) {
     out << "both cameras must be above the table (z > 0)";
+  } else {
+    out << CheckDistortion(distortion);
   }
   return out.str();
 }
@@ -457,6 +461,8 @@ std::string SceneRenderOptions::Check() const {
         << ")";
   } else if (const std::string grid_problem = target_grid.Check(); !grid_problem.empty()) {
     out << grid_problem;
+  } else if (const std::string board_problem = board.Check(); !board_problem.empty()) {
+    out << board_problem;
   }
   return out.str();
 }
@@ -478,6 +484,22 @@ calib::StereoCalibration PickCellCameras(const PickCellCameraOptions& options) {
   cameras.image_width = options.image_width;
   cameras.image_height = options.image_height;
   cameras.DeriveFromProjections();
+  if (!options.distortion.empty()) {
+    // P then maps to undistorted pixels, as a calibration with K D R T does (calibration.md).
+    calib::Intrinsics lens;
+    lens.K1 = CameraMatrixOf(cameras.P1);
+    lens.K2 = CameraMatrixOf(cameras.P2);
+    lens.D1 = lens.D2 = options.distortion;
+    Eigen::Matrix4d left_from_world = Eigen::Matrix4d::Identity(), right_from_world = left_from_world;
+    left_from_world.topRows<3>() = lens.K1.inverse() * cameras.P1;
+    right_from_world.topRows<3>() = lens.K2.inverse() * cameras.P2;
+    const Eigen::Matrix4d right_from_left = right_from_world * left_from_world.inverse();
+    lens.R = right_from_left.topLeftCorner<3, 3>();
+    lens.T = right_from_left.block<3, 1>(0, 3);
+    cameras.intrinsics = lens;
+    cameras.world_frame = "table";
+    cameras.world_from_left_camera = left_from_world.inverse();
+  }
   return cameras;
 }
 
@@ -493,15 +515,33 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
   const Lighting light;
   const RayCaster caster(objects);
   const int s = options.supersampling;
+  const std::vector<double>& distortion = options.cameras.distortion;
+  const Eigen::Matrix3d K = distortion.empty() ? Eigen::Matrix3d::Identity() : CameraMatrixOf(P);
   cv::Mat radiance(height, width, CV_32F);
   cv::parallel_for_(cv::Range(0, height), [&](const cv::Range& rows) {
     for (int v = rows.start; v < rows.end; ++v) {
       float* out = radiance.ptr<float>(v);
+      // With distortion, each sample's ideal pixel (its pinhole ray), a row at a time.
+      std::vector<cv::Point2d> ideal;
+      if (!distortion.empty()) {
+        for (int u = 0; u < width; ++u) {
+          for (int i = 0; i < s; ++i) {
+            for (int j = 0; j < s; ++j) {
+              ideal.emplace_back(u + (j + 0.5) / s - 0.5, v + (i + 0.5) / s - 0.5);
+            }
+          }
+        }
+        ideal = IdealPixels(ideal, K, distortion);
+      }
       for (int u = 0; u < width; ++u) {
         double sum = 0.0;
         for (int i = 0; i < s; ++i) {
           for (int j = 0; j < s; ++j) {
-            const Eigen::Vector3d pixel(u + (j + 0.5) / s - 0.5, v + (i + 0.5) / s - 0.5, 1.0);
+            Eigen::Vector3d pixel(u + (j + 0.5) / s - 0.5, v + (i + 0.5) / s - 0.5, 1.0);
+            if (!ideal.empty()) {
+              const cv::Point2d& x = ideal[static_cast<std::size_t>((u * s + i) * s + j)];
+              pixel = Eigen::Vector3d(x.x, x.y, 1.0);
+            }
             const Ray ray{centre, M_inverse * pixel};
             sum += Shade(caster.Cast(ray, kEpsilonMm), ray, caster, marks, options, light);
           }
@@ -676,6 +716,79 @@ RenderedScene RenderScene(const SceneRenderOptions& options) {
   return scene;
 }
 
+std::vector<calib::BoardView> BoardViewPoses(const SceneRenderOptions& options) {
+  const calib::ChessboardGeometry& board = options.board;
+  const Eigen::Vector3d board_centre(0.5 * (board.cols - 1) * board.square_mm,
+                                     0.5 * (board.rows - 1) * board.square_mm, 0.0);
+  // Centre offset from the work centre (mm), yaw, tilt about the board's x and y (deg).
+  struct Pose {
+    Eigen::Vector3d offset;
+    double yaw_deg, tilt_x_deg, tilt_y_deg;
+    bool on_table;
+  };
+  const std::vector<Pose> poses = {
+      {{0, 0, 0}, 4, 0, 0, true},           {{-50, -30, 40}, 0, -20, 20, false},
+      {{-50, 30, 40}, 0, 20, 20, false},    {{50, -30, 40}, 0, -20, -20, false},
+      {{50, 30, 40}, 0, 20, -20, false},    {{0, 0, 100}, 0, 25, 0, false},
+      {{0, 0, 100}, 0, -25, 0, false},      {{0, 0, 100}, 0, 0, 25, false},
+      {{0, 0, 100}, 0, 0, -25, false},      {{0, 0, 150}, 0, 20, 0, false},
+      {{0, -10, 150}, 0, -15, 0, false},    {{0, 0, 60}, 15, 10, -10, false},
+      // Near the images' corners, where distortion is largest; some only one camera sees whole.
+      {{-72, 62, 30}, 0, 0, 0, false},      {{72, 62, 30}, 0, 0, 0, false},
+      {{-72, -55, 30}, 0, 0, 0, false},     {{72, -55, 30}, 0, 0, 0, false},
+      {{-72, -68, 30}, 0, 0, 0, false},     {{72, -68, 30}, 0, 0, 0, false},
+      {{-72, 52, 30}, 0, 0, 0, false},      {{72, 52, 30}, 0, 0, 0, false}};
+  std::vector<calib::BoardView> views;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Pose& pose = poses[i];
+    Eigen::Affine3d world_from_board =
+        Eigen::Translation3d(options.cameras.work_centre_mm + pose.offset) *
+        Eigen::AngleAxisd(pose.yaw_deg * kPi / 180.0, Eigen::Vector3d::UnitZ()) *
+        Eigen::AngleAxisd(pose.tilt_x_deg * kPi / 180.0, Eigen::Vector3d::UnitX()) *
+        Eigen::AngleAxisd(pose.tilt_y_deg * kPi / 180.0, Eigen::Vector3d::UnitY()) *
+        Eigen::Translation3d(-board_centre);
+    calib::BoardView view;
+    view.world_from_board = world_from_board.matrix();
+    view.on_table = pose.on_table;
+    view.left_image = "board_left_" + std::to_string(i) + ".png";
+    view.right_image = "board_right_" + std::to_string(i) + ".png";
+    views.push_back(view);
+  }
+  return views;
+}
+
+namespace {
+
+// The board views of target/ (BoardViewPoses) into target->board and its images.
+void RenderBoardViews(const calib::StereoCalibration& cameras, const SceneRenderOptions& options,
+                      RenderedTarget* target) {
+  target->board.board = options.board;
+  target->board.views = BoardViewPoses(options);
+  BoardRenderOptions render;
+  render.image_width = options.cameras.image_width;
+  render.image_height = options.cameras.image_height;
+  render.blur_sigma_px = std::max(0.5, options.blur_sigma_px);
+  render.noise_sigma_grey = options.noise_sigma_grey;
+  render.distortion = options.cameras.distortion;
+  for (std::size_t i = 0; i < target->board.views.size(); ++i) {
+    const calib::BoardView& view = target->board.views[i];
+    render.random_seed = Mix(options.seed * 100 + 50 + i * 2);
+    const RenderedBoard left = RenderChessboard(cameras.P1, view.world_from_board, options.board,
+                                                render);
+    render.random_seed = Mix(options.seed * 100 + 51 + i * 2);
+    const RenderedBoard right = RenderChessboard(cameras.P2, view.world_from_board, options.board,
+                                                 render);
+    if (!left.fully_visible && !right.fully_visible) {
+      throw std::invalid_argument("the calibration board of view " + std::to_string(i) +
+                                  " is not fully visible in either image");
+    }
+    target->board_left_images.push_back(left.image);
+    target->board_right_images.push_back(right.image);
+  }
+}
+
+}  // namespace
+
 RenderedTarget RenderTargetPlacements(const calib::StereoCalibration& cameras,
                                       const SceneRenderOptions& options) {
   if (const std::string problem = options.Check(); !problem.empty()) {
@@ -718,10 +831,14 @@ RenderedTarget RenderTargetPlacements(const calib::StereoCalibration& cameras,
                                   std::to_string(options.target_heights_mm[h]) +
                                   " mm is not fully visible in both images");
     }
-    target.left_images.push_back(left.image);
-    target.right_images.push_back(right.image);
+    // A circle plate is drawn as a pinhole image, then resampled through the lens.
+    target.left_images.push_back(
+        DistortIdealImage(left.image, CameraMatrixOf(cameras.P1), options.cameras.distortion));
+    target.right_images.push_back(
+        DistortIdealImage(right.image, CameraMatrixOf(cameras.P2), options.cameras.distortion));
     target.description.placements.push_back(placement);
   }
+  RenderBoardViews(cameras, options, &target);
   return target;
 }
 
@@ -783,7 +900,18 @@ void WriteSceneDirectory(const RenderedScene& scene, const RenderedTarget& targe
     WritePngAtomically(dir + "/target/" + target.description.placements[h].right_image,
                        target.right_images[h]);
   }
-  calib::SaveTargetDescription(target.description, dir + "/target/target.yml");
+  for (std::size_t i = 0; i < target.board.views.size(); ++i) {
+    WritePngAtomically(dir + "/target/" + target.board.views[i].left_image,
+                       target.board_left_images[i]);
+    WritePngAtomically(dir + "/target/" + target.board.views[i].right_image,
+                       target.board_right_images[i]);
+  }
+  calib::SaveTargetDescription(target.description, dir + "/target/target.yml",
+                               [&](cv::FileStorage* storage) {
+                                 if (!target.board.views.empty()) {
+                                   calib::WriteBoardTarget(target.board, storage);
+                                 }
+                               });
 }
 
 }  // namespace hnnstereo::vision

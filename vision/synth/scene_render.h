@@ -19,6 +19,7 @@
 #include <string_view>
 #include <vector>
 
+#include "calib/board_calibration.h"
 #include "calib/calibration.h"
 #include "calib/circle_calibration.h"
 
@@ -54,6 +55,9 @@ struct PickCellCameraOptions {
   Eigen::Vector3d left_centre_mm{86.4, 479.7, 719.9};        ///< thesis C1
   Eigen::Vector3d right_centre_mm{81.1, 291.5, 711.9};       ///< thesis C2
   Eigen::Vector3d work_centre_mm{100.0, 385.0, 0.0};         ///< where both cameras look
+  /// Brown-Conrady lens distortion of both cameras, OpenCV order k1, k2, p1, p2 [, k3]
+  /// (`render --distortion`; vision/synth/lens_model.h); empty = ideal pinhole cameras.
+  std::vector<double> distortion;
   std::string Check() const;
   /// The same cameras on sensors of `width` x `height` px: the focal length and the principal
   /// offset scale with the width (the same horizontal field of view; a sensor of another aspect
@@ -115,6 +119,8 @@ struct SceneRenderOptions {
   calib::CircleGridGeometry target_grid{4, 5, 35.0, 8.0};
   /// Heights of the target placements (mm); each also gets its own offset and yaw.
   std::vector<double> target_heights_mm{0.0, 40.0, 80.0, 120.0, 150.0};
+  /// The chessboard of target/'s board views (BoardViewPoses), for `calibrate --dir`.
+  calib::ChessboardGeometry board;
   std::string Check() const;
 };
 
@@ -136,7 +142,8 @@ double SceneBrightness(const SceneRenderOptions& options);
 /// RenderScene does.
 std::vector<SceneObject> PlaceSceneObjects(const SceneRenderOptions& options);
 
-/// The true cameras of the cell (P = K [R | -R C]).
+/// The true cameras of the cell (P = K [R | -R C]; with distortion also K1 D1 K2 D2 R T, P then
+/// applying to undistorted pixels).
 calib::StereoCalibration PickCellCameras(const PickCellCameraOptions& options);
 
 /// Draws the parts (seeded), then ray casts both images. Throws std::invalid_argument on bad
@@ -150,10 +157,20 @@ cv::Mat RenderView(const calib::ProjectionMatrix& P, const std::vector<SceneObje
 /// The circle target at options.target_heights_mm seen by both cameras: images and target.yml
 /// content (image names "left_<h>.png", "right_<h>.png"). Throws when a placement is not fully
 /// visible in both images.
+/// Also the chessboard in BoardViewPoses (images "board_left_<i>.png", "board_right_<i>.png").
 struct RenderedTarget {
   calib::TargetDescription description;
   std::vector<cv::Mat> left_images, right_images;
+  calib::BoardTarget board;
+  std::vector<cv::Mat> board_left_images, board_right_images;
 };
+
+/// The board's world poses in target/: the first lies on the table (it fixes the world frame),
+/// 11 are lifted 40-150 mm and tilted 14-28 deg, 8 lie 30 mm up near the images' corners (some
+/// seen whole by one camera only: they calibrate its lens)
+/// (RenderTargetPlacements refuses a view that neither camera sees whole).
+std::vector<calib::BoardView> BoardViewPoses(const SceneRenderOptions& options);
+
 RenderedTarget RenderTargetPlacements(const calib::StereoCalibration& cameras,
                                       const SceneRenderOptions& options);
 
