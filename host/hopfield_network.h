@@ -61,8 +61,8 @@ NetworkSize EstimateSize(const NetworkLayout& layout);
 /// against the budget (a matcher may then choose fewer features, vision::MatchStereo).
 class MemoryBudgetExceeded : public std::runtime_error {
  public:
-  MemoryBudgetExceeded(const std::string& reason, std::size_t needed_bytes, std::size_t budget_bytes)
-      : std::runtime_error(reason), needed_bytes(needed_bytes), budget_bytes(budget_bytes) {}
+  MemoryBudgetExceeded(const std::string& reason, std::size_t needed, std::size_t budget)
+      : std::runtime_error(reason), needed_bytes(needed), budget_bytes(budget) {}
   std::size_t needed_bytes, budget_bytes;
 };
 
