@@ -28,6 +28,7 @@ struct EvalArgs {
   bool warped = false;
   bool quiet = false;
   double upsample = 1.0;
+  std::vector<std::string> outdoor_names = vision::EvaluationOptions{}.outdoor_names;
   /// The matcher flags of `match`, applied to the first preset (the one under test); the engine,
   /// device and memory budget to every preset.
   MatcherFlags flags;
@@ -68,6 +69,7 @@ void RunEval(EvalArgs& args) {
   options.presets = EvaluatedPresets(args);
   const hnn::EngineKind engine = options.presets.front().matcher.engine;
   options.baselines = args.baselines;
+  options.outdoor_names = args.outdoor_names;
   options.warped = args.warped;
   if (auto error = options.Check(); !error.empty()) throw std::invalid_argument(error);
 
@@ -124,6 +126,13 @@ void RunEval(EvalArgs& args) {
         (out.parent_path() / (out.stem().string() + "." + pair.name + ".png")).string(),
         std::move(ranked));
   }
+  // The confidence calibration next to --out: OUT_STEM.calibration.png.
+  cv::Mat calibration = vision::DrawCalibrationPlot(report);
+  if (!calibration.empty()) {
+    const std::filesystem::path out(args.out);
+    pair_plots.emplace_back((out.parent_path() / (out.stem().string() + ".calibration.png")).string(),
+                            std::move(calibration));
+  }
   calib::WriteFileAtomically(args.out, json.dump(2) + "\n");
   if (!args.markdown.empty()) calib::WriteFileAtomically(args.markdown, markdown);
   vision::WritePngAtomically(plot_path, vision::DrawPrecisionDensityPlot(report));
@@ -161,7 +170,9 @@ void AddEvalCommand(CLI::App& app) {
       "its own confidence (HNN: its confidence; WTA ZNCC: its margin; StereoSGBM / StereoBM:\n"
       "swept over the uniqueness ratio 0-60 with a left-right check); error rates at 25/50/75 %\n"
       "and full density in the Markdown and under \"ranked\" in EVAL.json, and one plot per\n"
-      "pair next to --out: EVAL.<pair>.png.");
+      "pair next to --out: EVAL.<pair>.png. The HNN's confidence calibration (error rate per\n"
+      "confidence bin, per pair, per scene type and overall): EVAL.json\n"
+      "\"confidence_calibration\", the Markdown, and EVAL.calibration.png.");
   cmd->add_option("--dataset", args->dataset,
                   "A Middlebury set folder, or a folder holding several")->required();
   cmd->add_option("--out", args->out, "Output EVAL.json")->required();
@@ -182,6 +193,11 @@ void AddEvalCommand(CLI::App& app) {
             "Also evaluate the unrectified version: right image warped by a known H, calibration "
             "P2 = H P2, scored after mapping back with H");
   cmd->add_flag("--quiet", args->quiet, "Print nothing on success");
+  cmd->add_option("--outdoor-names", args->outdoor_names,
+                  "Pairs whose folder name contains one of these are outdoor scenes, the others "
+                  "indoor: the confidence calibration is pooled per scene type")
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--upsample", args->upsample,
                   "Evaluate each pair at this many times its size (images bicubic, ground truth "
                   "nearest, disparities and range scaled): camera-sized pairs with real ground "

@@ -602,6 +602,74 @@ TEST(SummarizeRanked, PoolsCountsOverPairsAndComparesAtTheSameDensity) {
   EXPECT_GE(plot.cols, 800);
 }
 
+// A pair whose HNN preset kept `entries` (confidence, non-occluded, correct) as a probability.
+PairEvaluation CalibrationPair(const std::string& name, const std::string& scene,
+                               const std::vector<RankedMatches::Entry>& entries) {
+  PairEvaluation pair;
+  pair.name = name;
+  pair.scene = scene;
+  RankedMethod hnn;
+  hnn.method = "hnn-default";
+  hnn.probability = true;
+  hnn.ranked.entries = entries;
+  hnn.ranked.n_edges_with_truth = static_cast<int>(entries.size());
+  RankedMethod wta;  // a margin, not a probability: never binned
+  wta.method = "wta-zncc (margin)";
+  wta.ranked.entries = {{1.5f, true, false}};
+  pair.ranked = {hnn, wta};
+  return pair;
+}
+
+TEST(ConfidenceCalibration, BinsNonOccludedMatchesPerPairPerSceneAndOverall) {
+  EvaluationReport report;
+  // Indoor pair: 4 matches at 0.995 (1 wrong), 2 at 0.6 (both wrong), 1 occluded (not binned).
+  report.pairs.push_back(CalibrationPair("indoor_a", "indoor",
+                                         {{0.995f, true, true},  {0.995f, true, true},
+                                          {0.995f, true, true},  {0.995f, true, false},
+                                          {0.6f, true, false},   {0.6f, true, false},
+                                          {0.97f, false, false}}));
+  // Outdoor pair: 2 at 0.995 (both wrong), 1 at exactly 0.5 (bin [0.5, 0.8)), 1 at 1.0 (last bin).
+  report.pairs.push_back(CalibrationPair("eth3d_x", "outdoor",
+                                         {{0.995f, true, false}, {0.995f, true, false},
+                                          {0.5f, true, true},    {1.0f, true, true}}));
+  const RankedSummary summary = SummarizeRanked(report);
+  // hnn-default only: two pairs, indoor, outdoor, overall.
+  ASSERT_EQ(summary.calibration.size(), 5u);
+  const ConfidenceCalibration& a = summary.calibration[0];
+  EXPECT_EQ(a.group, "indoor_a");
+  EXPECT_EQ(a.method, "hnn-default");
+  EXPECT_DOUBLE_EQ(a.matches[5], 4.0);
+  EXPECT_DOUBLE_EQ(a.Error(5), 0.25);
+  EXPECT_DOUBLE_EQ(a.matches[1], 2.0);
+  EXPECT_DOUBLE_EQ(a.Error(1), 1.0);
+  EXPECT_NEAR(a.MeanConfidence(1), 0.6, 1e-6);
+  EXPECT_DOUBLE_EQ(a.matches[4], 0.0) << "the occluded match is not binned";
+  EXPECT_TRUE(std::isnan(a.Error(0)));
+  const ConfidenceCalibration& outdoor = summary.calibration[3];
+  EXPECT_EQ(outdoor.group, "outdoor");
+  EXPECT_EQ(outdoor.n_pairs, 1);
+  EXPECT_DOUBLE_EQ(outdoor.matches[5], 3.0) << "1.0 falls in the last bin";
+  EXPECT_NEAR(outdoor.Error(5), 2.0 / 3.0, 1e-12);
+  EXPECT_DOUBLE_EQ(outdoor.matches[1], 1.0) << "0.5 opens the second bin";
+  const ConfidenceCalibration& overall = summary.calibration[4];
+  EXPECT_EQ(overall.group, "overall");
+  EXPECT_EQ(overall.n_pairs, 2);
+  EXPECT_DOUBLE_EQ(overall.matches[5], 7.0);
+  EXPECT_NEAR(overall.Error(5), 3.0 / 7.0, 1e-12);
+
+  const std::string markdown = RankedMarkdown(report);
+  EXPECT_NE(markdown.find("| **outdoor** (1) | hnn-default | - | 0.0 (1) | - | - | - | 66.7 (3) |"),
+            std::string::npos)
+      << markdown;
+  const nlohmann::json json = EvaluationJson(report);
+  ASSERT_EQ(json["ranked"]["confidence_calibration"].size(), 5u);
+  EXPECT_TRUE(json["ranked"]["confidence_calibration"][0]["bins"][0]["error_1px"].is_null());
+  EXPECT_EQ(json["pairs"][1]["scene"], "outdoor");
+  const cv::Mat plot = DrawCalibrationPlot(report);
+  EXPECT_EQ(plot.cols, 900);
+  EXPECT_TRUE(DrawCalibrationPlot(EvaluationReport{}).empty());
+}
+
 TEST(Middlebury, TheVendoredTeddyGivesTheSameOcclusionsAsTheSharedOne) {
   const std::string shared = std::string(HNNSTEREO_SHARED_DIR) + "/datasets/middlebury2003_teddy";
   if (!std::filesystem::exists(shared)) GTEST_SKIP() << shared << " is absent";

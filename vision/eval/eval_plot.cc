@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
+
+#include "common/format.h"
 
 namespace hnnstereo::vision {
 namespace {
@@ -13,10 +16,12 @@ constexpr int kPanelWidth = 420;
 constexpr int kPanelHeight = 320;
 constexpr int kMargin = 44;
 
-const cv::Scalar kColours[] = {{40, 40, 220},  {220, 120, 30}, {30, 160, 30},  {160, 40, 160},
-                               {20, 160, 200}, {120, 120, 120}, {0, 90, 160}, {200, 60, 120}};
+const cv::Scalar kColours[] = {{40, 40, 220},  {220, 120, 30},  {30, 160, 30}, {160, 40, 160},
+                               {20, 160, 200}, {120, 120, 120}, {0, 90, 160},  {200, 60, 120}};
 
-cv::Scalar ColourOf(std::size_t index) { return kColours[index % (sizeof kColours / sizeof kColours[0])]; }
+cv::Scalar ColourOf(std::size_t index) {
+  return kColours[index % (sizeof kColours / sizeof kColours[0])];
+}
 
 void DrawPanel(cv::Mat panel, const PairEvaluation& pair, const std::vector<std::string>& methods,
                bool legend) {
@@ -32,14 +37,14 @@ void DrawPanel(cv::Mat panel, const PairEvaluation& pair, const std::vector<std:
     cv::line(panel, to_pixel(share, 0.0), to_pixel(share, 1.0), cv::Scalar(225, 225, 225), 1);
     cv::line(panel, to_pixel(0.0, share), to_pixel(1.0, share), cv::Scalar(225, 225, 225), 1);
     const std::string label = std::to_string(tick * 10);
-    cv::putText(panel, label, to_pixel(share, 0.0) + cv::Point(-8, 16), cv::FONT_HERSHEY_SIMPLEX, 0.35,
-                cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
-    cv::putText(panel, label, to_pixel(0.0, share) + cv::Point(-28, 4), cv::FONT_HERSHEY_SIMPLEX, 0.35,
-                cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+    cv::putText(panel, label, to_pixel(share, 0.0) + cv::Point(-8, 16), cv::FONT_HERSHEY_SIMPLEX,
+                0.35, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
+    cv::putText(panel, label, to_pixel(0.0, share) + cv::Point(-28, 4), cv::FONT_HERSHEY_SIMPLEX,
+                0.35, cv::Scalar(60, 60, 60), 1, cv::LINE_AA);
   }
   cv::rectangle(panel, to_pixel(0.0, 1.0), to_pixel(1.0, 0.0), cv::Scalar(0, 0, 0), 1);
-  cv::putText(panel, pair.name, cv::Point(left + 60, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0),
-              1, cv::LINE_AA);
+  cv::putText(panel, pair.name, cv::Point(left + 60, 16), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::putText(panel, "density % of Canny edges", cv::Point(left + 100, kPanelHeight - 8),
               cv::FONT_HERSHEY_SIMPLEX, 0.38, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::putText(panel, "prec. 1px %", cv::Point(2, top - 6), cv::FONT_HERSHEY_SIMPLEX, 0.35,
@@ -53,7 +58,8 @@ void DrawPanel(cv::Mat panel, const PairEvaluation& pair, const std::vector<std:
         cv::line(panel, to_pixel(curve[i - 1].density, curve[i - 1].precision_1px), p, colour, 2,
                  cv::LINE_AA);
       }
-      if (curve.size() == 1 || i + 1 == curve.size()) cv::circle(panel, p, 4, colour, cv::FILLED, cv::LINE_AA);
+      if (curve.size() == 1 || i + 1 == curve.size())
+        cv::circle(panel, p, 4, colour, cv::FILLED, cv::LINE_AA);
     }
   }
   if (legend) {
@@ -171,20 +177,24 @@ void DrawRankedGrid(cv::Mat& plot, const RankedAxes& axes) {
     Text(plot, label, axes.ToPixel(0.0, precision) + cv::Point(-38, 5), 0.5, ink);
   }
   for (const double guide : kTableDensities) {
-    DashedLine(plot, axes.ToPixel(guide, axes.y_min), axes.ToPixel(guide, 1.0), cv::Scalar(150, 150, 150));
+    DashedLine(plot, axes.ToPixel(guide, axes.y_min), axes.ToPixel(guide, 1.0),
+               cv::Scalar(150, 150, 150));
   }
-  cv::rectangle(plot, axes.ToPixel(0.0, 1.0), axes.ToPixel(1.0, axes.y_min), cv::Scalar(0, 0, 0), 1);
+  cv::rectangle(plot, axes.ToPixel(0.0, 1.0), axes.ToPixel(1.0, axes.y_min), cv::Scalar(0, 0, 0),
+                1);
 }
 
 // The title (shrunk to fit), the x label and the rotated y label.
 void DrawRankedLabels(cv::Mat& plot, const PairEvaluation& pair, const RankedAxes& axes) {
   const int left = axes.left;
   {
-    const std::string title = pair.name + ": precision vs density, each method ranked by its own confidence";
+    const std::string title =
+        pair.name + ": precision vs density, each method ranked by its own confidence";
     double scale = 0.65;
     int baseline = 0;
     while (scale > 0.4 &&
-           cv::getTextSize(title, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline).width > kRankedWidth - 20 - left / 2) {
+           cv::getTextSize(title, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline).width >
+               kRankedWidth - 20 - left / 2) {
       scale -= 0.05;
     }
     Text(plot, title, cv::Point(left / 2, 30), scale, cv::Scalar(0, 0, 0), 1);
@@ -246,7 +256,8 @@ void DrawRankedCurve(cv::Mat& plot, const RankedAxes& axes, const std::vector<Cu
                      const cv::Scalar& colour, int thickness) {
   for (std::size_t i = 1; i < curve.size(); ++i) {
     cv::line(plot, axes.ToPixel(curve[i - 1].density, curve[i - 1].precision_1px),
-             axes.ToPixel(curve[i].density, curve[i].precision_1px), colour, thickness, cv::LINE_AA);
+             axes.ToPixel(curve[i].density, curve[i].precision_1px), colour, thickness,
+             cv::LINE_AA);
   }
   if (!curve.empty()) {
     cv::circle(plot, axes.ToPixel(curve.back().density, curve.back().precision_1px), 5, colour,
@@ -286,15 +297,18 @@ std::vector<LegendEntry> DrawRankedCurves(cv::Mat& plot, const RankedAxes& axes,
 }
 
 // The legend: a boxed list in the lower-left corner of the axes.
-void DrawRankedLegend(cv::Mat& plot, const RankedAxes& axes, const std::vector<LegendEntry>& legend) {
+void DrawRankedLegend(cv::Mat& plot, const RankedAxes& axes,
+                      const std::vector<LegendEntry>& legend) {
   const int row_height = 24;
   int legend_width = 0;
   for (const LegendEntry& entry : legend) {
     int baseline = 0;
-    legend_width = std::max(legend_width,
-                            cv::getTextSize(entry.label, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width);
+    legend_width =
+        std::max(legend_width,
+                 cv::getTextSize(entry.label, cv::FONT_HERSHEY_SIMPLEX, 0.5, 1, &baseline).width);
   }
-  const cv::Rect box(axes.left + 12, axes.bottom - 12 - row_height * static_cast<int>(legend.size()) - 8,
+  const cv::Rect box(axes.left + 12,
+                     axes.bottom - 12 - row_height * static_cast<int>(legend.size()) - 8,
                      legend_width + 60, row_height * static_cast<int>(legend.size()) + 8);
   cv::rectangle(plot, box, cv::Scalar(255, 255, 255), cv::FILLED);
   cv::rectangle(plot, box, cv::Scalar(120, 120, 120), 1);
@@ -302,8 +316,12 @@ void DrawRankedLegend(cv::Mat& plot, const RankedAxes& axes, const std::vector<L
     const int y = box.y + 4 + row_height * static_cast<int>(i) + row_height / 2;
     const cv::Point a(box.x + 8, y), b(box.x + 40, y);
     switch (legend[i].kind) {
-      case 0: cv::line(plot, a, b, legend[i].colour, 3, cv::LINE_AA); break;
-      case 1: cv::line(plot, a, b, legend[i].colour, 2, cv::LINE_AA); break;
+      case 0:
+        cv::line(plot, a, b, legend[i].colour, 3, cv::LINE_AA);
+        break;
+      case 1:
+        cv::line(plot, a, b, legend[i].colour, 2, cv::LINE_AA);
+        break;
       default:
         cv::line(plot, a, b, legend[i].colour, 1, cv::LINE_AA);
         Marker(plot, (a + b) / 2, legend[i].colour, legend[i].kind == 3);
@@ -323,6 +341,91 @@ cv::Mat DrawRankedPlot(const PairEvaluation& pair) {
   DrawRankedGrid(plot, axes);
   DrawRankedLabels(plot, pair, axes);
   DrawRankedLegend(plot, axes, DrawRankedCurves(plot, axes, pair, curves));
+  return plot;
+}
+
+cv::Mat DrawCalibrationPlot(const EvaluationReport& report) {
+  const RankedSummary summary = SummarizeRanked(report);
+  if (summary.calibration.empty()) return {};
+  const std::string method = summary.calibration.front().method;
+  std::vector<const ConfidenceCalibration*> tables;
+  for (const ConfidenceCalibration& c : summary.calibration) {
+    if (c.method == method) tables.push_back(&c);
+  }
+  constexpr std::size_t kBins = ConfidenceCalibration::kBins;
+  double y_max = 0.1;
+  for (const ConfidenceCalibration* c : tables) {
+    for (std::size_t b = 0; b < kBins; ++b) {
+      if (c->matches[b] > 0.0) y_max = std::max(y_max, c->Error(b));
+    }
+  }
+  y_max = std::ceil(y_max * 10.0) / 10.0;
+  const int width = 900, height = 560, left = 80, right = width - 200, top = 50,
+            bottom = height - 70;
+  cv::Mat plot(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  auto to_pixel = [&](double slot, double error) {
+    const double x = left + (slot + 0.5) / kBins * (right - left);
+    const double y = bottom - std::clamp(error / y_max, 0.0, 1.0) * (bottom - top);
+    return cv::Point(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)));
+  };
+  for (int tick = 0; tick <= 10; ++tick) {
+    const double error = y_max * tick / 10.0;
+    const cv::Point a(left, to_pixel(0, error).y), b(right, to_pixel(0, error).y);
+    cv::line(plot, a, b, cv::Scalar(225, 225, 225), 1);
+    Text(plot, std::to_string(static_cast<int>(std::lround(error * 100.0))), a + cv::Point(-30, 4),
+         0.4);
+  }
+  for (std::size_t b = 0; b < kBins; ++b) {
+    const std::string label = common::Fixed(kConfidenceBinEdges[b], 2) + "-" +
+                              common::Fixed(kConfidenceBinEdges[b + 1], 2);
+    Text(plot, label, cv::Point(to_pixel(static_cast<double>(b), 0).x - 34, bottom + 20), 0.4);
+  }
+  cv::rectangle(plot, cv::Point(left, top), cv::Point(right, bottom), cv::Scalar(0, 0, 0), 1);
+  Text(plot, method + ": error rate against confidence", cv::Point(left, 30), 0.6);
+  Text(plot, "confidence bin", cv::Point((left + right) / 2 - 50, height - 20), 0.5);
+  Text(plot, "error %", cv::Point(10, top - 12), 0.45);
+  auto draw = [&](const ConfidenceCalibration& c, const cv::Scalar& colour, int thickness,
+                  bool ideal) {
+    std::optional<cv::Point> previous;
+    for (std::size_t b = 0; b < kBins; ++b) {
+      if (c.matches[b] <= 0.0) continue;
+      const double error = ideal ? 1.0 - c.MeanConfidence(b) : c.Error(b);
+      const cv::Point p = to_pixel(static_cast<double>(b), error);
+      if (previous) {
+        if (ideal) {
+          DashedLine(plot, *previous, p, colour);
+        } else {
+          cv::line(plot, *previous, p, colour, thickness, cv::LINE_AA);
+        }
+      }
+      if (!ideal && thickness > 1) cv::circle(plot, p, 4, colour, cv::FILLED, cv::LINE_AA);
+      previous = p;
+    }
+  };
+  for (const ConfidenceCalibration* c : tables) {
+    if (c->n_pairs == 1 && c->group != "overall") draw(*c, cv::Scalar(200, 200, 200), 1, false);
+  }
+  int legend_y = top + 10;
+  std::size_t colour = 0;
+  for (const ConfidenceCalibration* c : tables) {
+    const bool pooled = c->group == "overall" || c->group == "indoor" || c->group == "outdoor";
+    if (!pooled) continue;
+    const cv::Scalar line_colour = c->group == "overall" ? cv::Scalar(0, 0, 0) : ColourOf(colour++);
+    draw(*c, line_colour, 2, false);
+    if (c->group == "overall") draw(*c, cv::Scalar(0, 0, 0), 1, true);
+    cv::line(plot, cv::Point(right + 15, legend_y - 4), cv::Point(right + 40, legend_y - 4),
+             line_colour, 2);
+    Text(plot, c->group + " (" + std::to_string(c->n_pairs) + ")", cv::Point(right + 46, legend_y),
+         0.45);
+    legend_y += 20;
+  }
+  DashedLine(plot, cv::Point(right + 15, legend_y - 4), cv::Point(right + 40, legend_y - 4),
+             cv::Scalar(0, 0, 0));
+  Text(plot, "1 - confidence", cv::Point(right + 46, legend_y), 0.45);
+  legend_y += 20;
+  cv::line(plot, cv::Point(right + 15, legend_y - 4), cv::Point(right + 40, legend_y - 4),
+           cv::Scalar(200, 200, 200), 1);
+  Text(plot, "each pair", cv::Point(right + 46, legend_y), 0.45);
   return plot;
 }
 

@@ -19,4 +19,10 @@ cv::Mat DrawPrecisionDensityPlot(const EvaluationReport& report);
 /// Empty when the pair has no ranked methods. CV_8UC3.
 cv::Mat DrawRankedPlot(const PairEvaluation& pair);
 
+/// The first HNN preset's confidence calibration (RankedSummary::calibration), 900x560: error
+/// rate (y) in each confidence bin (x, one slot per bin of kConfidenceBinEdges), one thick line
+/// per scene type and overall, each pair a thin grey line, and dashed 1 - mean confidence (what a
+/// calibrated confidence would give). Empty when no preset was ranked. CV_8UC3.
+cv::Mat DrawCalibrationPlot(const EvaluationReport& report);
+
 }  // namespace hnnstereo::vision

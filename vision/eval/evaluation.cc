@@ -515,7 +515,8 @@ namespace {
 
 // The pair's description in the evaluation and its notices on how occlusion is known: from a
 // mask, from a 1 px left-right check of the two ground-truth maps, or not at all.
-void DescribePair(const MiddleburyPair& pair, PairEvaluation* evaluation) {
+void DescribePair(const MiddleburyPair& pair, const EvaluationOptions& options,
+                  PairEvaluation* evaluation) {
   evaluation->name = pair.name;
   evaluation->layout = std::string(MiddleburyLayoutName(pair.layout));
   evaluation->occlusion_source = pair.occlusion_source;
@@ -523,6 +524,11 @@ void DescribePair(const MiddleburyPair& pair, PairEvaluation* evaluation) {
   evaluation->height = pair.left_grey.rows;
   evaluation->min_disparity = pair.min_disparity;
   evaluation->max_disparity = pair.max_disparity;
+  const bool outdoor = std::any_of(options.outdoor_names.begin(), options.outdoor_names.end(),
+                                   [&](const std::string& key) {
+                                     return !key.empty() && pair.name.find(key) != std::string::npos;
+                                   });
+  evaluation->scene = outdoor ? "outdoor" : "indoor";
   if (pair.occlusion_source == "left-right check") {
     evaluation->notices.push_back(
         "no occlusion mask: occluded pixels are those failing a 1 px left-right check of the left "
@@ -574,6 +580,7 @@ std::vector<Eigen::Vector2f> EvaluatePresets(const MiddleburyPair& pair, const E
     ranked.method = preset.name;
     ranked.ranked = RankMatches(matches, truth, n_edges);
     ranked.time_ms = matches.time_ms;
+    ranked.probability = true;
     evaluation->ranked.push_back(std::move(ranked));
   }
   return default_pixels;
@@ -705,7 +712,7 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
     if (TruthAt(truth, p)) ++evaluation.n_edges_with_truth;
   }
   const int n_edges = evaluation.n_edges_with_truth;
-  DescribePair(pair, &evaluation);
+  DescribePair(pair, options, &evaluation);
   const std::vector<Eigen::Vector2f> default_pixels =
       EvaluatePresets(pair, options, truth, n_edges, runtime, &evaluation);
   if (options.baselines) {
@@ -770,8 +777,85 @@ void Pool(OperatingPoint* pooled, const OperatingPoint& point) {
 
 }  // namespace
 
+void ConfidenceCalibration::Add(const RankedMatches& ranked) {
+  for (const RankedMatches::Entry& entry : ranked.entries) {
+    if (!entry.nonoccluded) continue;
+    const auto upper = std::upper_bound(kConfidenceBinEdges.begin() + 1, kConfidenceBinEdges.end() - 1,
+                                        static_cast<double>(entry.confidence));
+    const std::size_t bin = static_cast<std::size_t>(upper - kConfidenceBinEdges.begin()) - 1;
+    matches[bin] += 1.0;
+    wrong[bin] += entry.correct ? 0.0 : 1.0;
+    confidence_sum[bin] += entry.confidence;
+  }
+}
+
+void ConfidenceCalibration::Add(const ConfidenceCalibration& other) {
+  for (std::size_t b = 0; b < kBins; ++b) {
+    matches[b] += other.matches[b];
+    wrong[b] += other.wrong[b];
+    confidence_sum[b] += other.confidence_sum[b];
+  }
+  n_pairs += other.n_pairs;
+}
+
+double ConfidenceCalibration::Error(std::size_t bin) const {
+  return matches[bin] > 0.0 ? wrong[bin] / matches[bin] : std::numeric_limits<double>::quiet_NaN();
+}
+
+double ConfidenceCalibration::MeanConfidence(std::size_t bin) const {
+  return matches[bin] > 0.0 ? confidence_sum[bin] / matches[bin] : std::numeric_limits<double>::quiet_NaN();
+}
+
+namespace {
+
+// Per probability-ranked method: each pair's calibration, then the pairs pooled per scene type
+// (in the order the types first appear), then all pairs.
+std::vector<ConfidenceCalibration> CalibrationTables(const EvaluationReport& report) {
+  std::vector<std::string> methods, scenes;
+  for (const PairEvaluation& pair : report.pairs) {
+    if (std::find(scenes.begin(), scenes.end(), pair.scene) == scenes.end()) scenes.push_back(pair.scene);
+    for (const RankedMethod& m : pair.ranked) {
+      if (m.probability && std::find(methods.begin(), methods.end(), m.method) == methods.end()) {
+        methods.push_back(m.method);
+      }
+    }
+  }
+  std::vector<ConfidenceCalibration> tables;
+  for (const std::string& method : methods) {
+    std::vector<ConfidenceCalibration> per_scene(scenes.size());
+    ConfidenceCalibration overall;
+    overall.group = "overall";
+    overall.method = method;
+    for (const PairEvaluation& pair : report.pairs) {
+      const RankedMethod* m = FindRanked(pair, method);
+      if (m == nullptr || !m->probability) continue;
+      ConfidenceCalibration table;
+      table.group = pair.name;
+      table.method = method;
+      table.n_pairs = 1;
+      table.Add(m->ranked);
+      tables.push_back(table);
+      const std::size_t s = static_cast<std::size_t>(
+          std::find(scenes.begin(), scenes.end(), pair.scene) - scenes.begin());
+      per_scene[s].Add(table);
+      overall.Add(table);
+    }
+    for (std::size_t s = 0; s < scenes.size(); ++s) {
+      if (per_scene[s].n_pairs == 0) continue;
+      per_scene[s].group = scenes[s];
+      per_scene[s].method = method;
+      tables.push_back(per_scene[s]);
+    }
+    tables.push_back(overall);
+  }
+  return tables;
+}
+
+}  // namespace
+
 RankedSummary SummarizeRanked(const EvaluationReport& report) {
   RankedSummary summary;
+  summary.calibration = CalibrationTables(report);
   std::vector<std::string> methods;
   for (const PairEvaluation& pair : report.pairs) {
     for (const RankedMethod& m : pair.ranked) {
@@ -911,7 +995,11 @@ nlohmann::json RankedJson(const EvaluationReport& report) {
       {"ranking_check", "error of the top 25 % of a ranked method's kept matches (at pixels with "
                         "ground truth) by confidence / error of all of them"},
       {"same_pixels", "at the first preset's matched pixels: its error vs opencv-sgbm at "
-                      "uniqueness 10 with the left-right check, an invalid output counted wrong"}};
+                      "uniqueness 10 with the left-right check, an invalid output counted wrong"},
+      {"confidence_calibration", "an HNN preset's non-occluded matches at pixels with ground truth "
+                                 "binned by confidence [low, high): their count, error_1px and mean "
+                                 "confidence (calibrated: error_1px near 1 - mean_confidence); per "
+                                 "pair, per scene type (indoor, outdoor) and overall"}};
   nlohmann::json rows = nlohmann::json::array();
   for (const RankedSummary::Row& row : summary.rows) {
     nlohmann::json at = nlohmann::json::object();
@@ -945,6 +1033,17 @@ nlohmann::json RankedJson(const EvaluationReport& report) {
                     {"sgbm_error_1px", s.sgbm_error}, {"n_nonoccluded", s.n}, {"ratio", s.ratio()}});
   }
   json["same_pixels"] = same;
+  nlohmann::json calibration = nlohmann::json::array();
+  for (const ConfidenceCalibration& c : summary.calibration) {
+    nlohmann::json bins = nlohmann::json::array();
+    for (std::size_t b = 0; b < ConfidenceCalibration::kBins; ++b) {
+      bins.push_back({{"low", kConfidenceBinEdges[b]}, {"high", kConfidenceBinEdges[b + 1]},
+                      {"matches", c.matches[b]}, {"error_1px", number(c.Error(b))},
+                      {"mean_confidence", number(c.MeanConfidence(b))}});
+    }
+    calibration.push_back({{"group", c.group}, {"method", c.method}, {"n_pairs", c.n_pairs}, {"bins", bins}});
+  }
+  json["confidence_calibration"] = calibration;
   return json;
 }
 
@@ -1000,6 +1099,7 @@ nlohmann::json EvaluationJson(const EvaluationReport& report) {
   for (const PairEvaluation& pair : report.pairs) {
     nlohmann::json p{{"name", pair.name},
                      {"layout", pair.layout},
+                     {"scene", pair.scene},
                      {"occlusion_source", pair.occlusion_source},
                      {"width", pair.width},
                      {"height", pair.height},
@@ -1135,6 +1235,28 @@ std::string RankedMarkdown(const EvaluationReport& report) {
     for (const RankedSummary::SamePixels& s : summary.same_pixels) {
       text += "| " + PairLabel(s.pair) + " | " + Percent(s.density) + " | " + Percent(s.hnn_error) +
               " | " + Percent(s.sgbm_error) + " | " + Fixed(s.ratio(), 2) + " |\n";
+    }
+  }
+  if (!summary.calibration.empty()) {
+    text += "\nConfidence calibration: error % of the non-occluded matches in each confidence bin "
+            "(matches in brackets); a confidence that holds has about 1 - c of them wrong, on "
+            "every scene type:\n\n| pair or scene | method |";
+    std::string rule = "|---|---|";
+    for (std::size_t b = 0; b < ConfidenceCalibration::kBins; ++b) {
+      text += " " + Fixed(kConfidenceBinEdges[b], 2) + "-" + Fixed(kConfidenceBinEdges[b + 1], 2) + " |";
+      rule += "---:|";
+    }
+    text += "\n" + rule + "\n";
+    for (const ConfidenceCalibration& c : summary.calibration) {
+      const bool pooled = c.group == "overall" || c.group == "indoor" || c.group == "outdoor";
+      text += "| " + (pooled ? "**" + c.group + "** (" + std::to_string(c.n_pairs) + ")" : c.group) +
+              " | " + c.method + " |";
+      for (std::size_t b = 0; b < ConfidenceCalibration::kBins; ++b) {
+        text += c.matches[b] > 0.0 ? " " + Percent(c.Error(b)) + " (" +
+                                         std::to_string(static_cast<long long>(c.matches[b])) + ") |"
+                                   : " - |";
+      }
+      text += "\n";
     }
   }
   return text;

@@ -19,6 +19,7 @@
 // their uniqueness ratio (one point per setting). An invalid output is simply not kept there.
 
 #include <Eigen/Core>
+#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -187,6 +188,9 @@ struct RankedMethod {
   RankedMatches ranked;
   std::vector<SweepPoint> sweep;
   double time_ms = 0.0;
+  /// The confidence is a probability of being within 1 px (the HNN presets' fitted model,
+  /// ConfidenceOptions): it is binned in the confidence calibration.
+  bool probability = false;
   OperatingPoint At(double density) const;  ///< ranked cut, or the best setting reaching it
   OperatingPoint Full() const;               ///< all matches, or the densest setting
   std::vector<CurvePoint> Curve() const;     ///< ranked curve, or one point per setting
@@ -203,6 +207,9 @@ struct EvaluationOptions {
   bool baselines = true;          ///< WTA ZNCC, StereoBM, StereoSGBM at the same pixels
   int wta_zncc_window = 7;        ///< thesis: 7
   bool warped = false;            ///< also evaluate the unrectified version (right warped by H)
+  /// A pair whose name contains one of these is an outdoor scene, any other an indoor one (the
+  /// Middlebury sets): the confidence calibration is also pooled per scene type.
+  std::vector<std::string> outdoor_names = {"eth3d", "kitti", "outdoor"};
   /// Homography of the warped evaluation: a small rotation, shear and vertical shift.
   Eigen::Matrix3d warp = DefaultWarp();
   std::string Check() const;
@@ -211,6 +218,7 @@ struct EvaluationOptions {
 
 struct PairEvaluation {
   std::string name, layout, occlusion_source;
+  std::string scene = "indoor";  ///< or "outdoor" (EvaluationOptions::outdoor_names)
   int width = 0, height = 0;
   double min_disparity = 0.0, max_disparity = 0.0;
   int n_edges = 0, n_edges_with_truth = 0;
@@ -236,6 +244,26 @@ PairEvaluation EvaluatePair(const MiddleburyPair& pair, const EvaluationOptions&
 /// Evaluates every pair and sums the overall figures.
 EvaluationReport Evaluate(const std::vector<MiddleburyPair>& pairs, const EvaluationOptions& options,
                           ocl::Runtime* runtime);
+
+/// Edges of the confidence bins of the calibration table: [0, 0.5), [0.5, 0.8), [0.8, 0.9),
+/// [0.9, 0.95), [0.95, 0.99), [0.99, 1].
+inline constexpr std::array<double, 7> kConfidenceBinEdges = {0.0, 0.5, 0.8, 0.9, 0.95, 0.99, 1.0};
+
+/// Error rate against confidence, a reliability table (Niculescu-Mizil and Caruana, "Predicting
+/// good probabilities with supervised learning", ICML 2005): a method's non-occluded matches at
+/// pixels with ground truth, binned by confidence. A confidence that holds across scenes has about
+/// 1 - (mean confidence) of a bin's matches wrong, in every bin and on every scene type.
+struct ConfidenceCalibration {
+  static constexpr std::size_t kBins = kConfidenceBinEdges.size() - 1;
+  std::string group;  ///< a pair's name, a scene type ("indoor", "outdoor") or "overall"
+  std::string method;
+  int n_pairs = 0;
+  std::array<double, kBins> matches{}, wrong{}, confidence_sum{};
+  void Add(const RankedMatches& ranked);        ///< bins one pair's matches
+  void Add(const ConfidenceCalibration& other);  ///< pools counts (group and method kept)
+  double Error(std::size_t bin) const;           ///< NaN for an empty bin
+  double MeanConfidence(std::size_t bin) const;  ///< NaN for an empty bin
+};
 
 /// The ranked comparison's figures, per pair and pooled over pairs (counts summed: edge-weighted).
 struct RankedSummary {
@@ -265,6 +293,8 @@ struct RankedSummary {
   std::vector<Ratio> ratios;
   std::vector<RankingCheck> ranking;
   std::vector<SamePixels> same_pixels;
+  /// Per probability-ranked method: per pair, then per scene type, then overall.
+  std::vector<ConfidenceCalibration> calibration;
 };
 RankedSummary SummarizeRanked(const EvaluationReport& report);
 

@@ -34,10 +34,12 @@ struct CoarseSupport {
       high0.at<float>(y, x) = std::max(high0.at<float>(y, x), d);
     }
     for (int h : half_sides) {
-      const cv::Mat square = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * h + 1, 2 * h + 1));
+      const cv::Mat square =
+          cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * h + 1, 2 * h + 1));
       cv::Mat l, u;
       cv::erode(low0, l, square, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(kNoMatch));
-      cv::dilate(high0, u, square, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(-kNoMatch));
+      cv::dilate(high0, u, square, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT,
+                 cv::Scalar(-kNoMatch));
       low.push_back(l);
       high.push_back(u);
     }
@@ -69,9 +71,9 @@ bool CoarseToFineApplies(const MatcherOptions& options, cv::Size image_size) {
 }
 
 CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_grey,
-                                                const std::vector<Eigen::Vector2f>& left_points,
-                                                const MatcherOptions& options, ocl::Runtime* runtime,
-                                                CoarseToFineReport* report) {
+                                 const std::vector<Eigen::Vector2f>& left_points,
+                                 const MatcherOptions& options, ocl::Runtime* runtime,
+                                 CoarseToFineReport* report) {
   const auto start = std::chrono::steady_clock::now();
   // The half-size pair: pixel (i, j) averages full-size pixels 2i..2i+1, 2j..2j+1, so a
   // full-size x is 2 x_coarse + 0.5 and every disparity halves.
@@ -84,10 +86,12 @@ CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_
   coarse.min_confidence = 0.0;
   coarse.network_observer = nullptr;
   // The half-size match only has to back the bands: a spread share of the features does.
-  const int coarse_cap = std::max(
-      1000, static_cast<int>(options.coarse_to_fine.coarse_feature_share * left_points.size()));
-  coarse.features.max_features =
-      options.features.max_features > 0 ? std::min(options.features.max_features, coarse_cap) : coarse_cap;
+  const int coarse_cap =
+      std::max(1000, static_cast<int>(options.coarse_to_fine.coarse_feature_share *
+                                      static_cast<double>(left_points.size())));
+  coarse.features.max_features = options.features.max_features > 0
+                                     ? std::min(options.features.max_features, coarse_cap)
+                                     : coarse_cap;
   MatchReport coarse_match = MatchStereo(left_half, right_half, nullptr, coarse, runtime);
   // Only the coarse matches a reverse search confirms back a band (the sub-pixel fit halves
   // their disparity's rounding error).
@@ -123,7 +127,8 @@ CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_
       backed = true;
     }
     if (!backed) ++whole_range;
-    if (const float low = support.low.back().at<float>(y, x), high = support.high.back().at<float>(y, x);
+    if (const float low = support.low.back().at<float>(y, x),
+        high = support.high.back().at<float>(y, x);
         low <= high) {
       bands.check[i] = scaled(low, high);
     }
@@ -134,7 +139,8 @@ CoarseBands CoarseDisparityBands(const cv::Mat& left_grey, const cv::Mat& right_
     report->levels = 1 + coarse_match.coarse_to_fine.levels;
     report->coarse_size = left_half.size();
     report->coarse_matches = static_cast<int>(coarse_match.matches.size());
-    report->mean_band_levels = left_points.empty() ? 0.0 : levels_searched / left_points.size();
+    report->mean_band_levels =
+        left_points.empty() ? 0.0 : levels_searched / static_cast<double>(left_points.size());
     report->features_whole_range = whole_range;
     report->ms = common::MillisecondsSince(start);
   }
