@@ -36,13 +36,22 @@ FEATURES = (["correlation", "correlation_margin"] +
 
 
 def feature_columns(rows, col, names):
-    """The model's inputs from the report's columns (agreement_r = agreeing_r / neighbours_r)."""
+    """The model's inputs from the report's columns (agreement_r = agreeing_r / neighbours_r;
+    relneighbours_r = neighbours_r / the pair's median neighbours_r, a scene-relative density;
+    relcorrelation = correlation - the pair's median correlation)."""
     out = []
     for name in names:
         if name.startswith("agreement_"):
             r = name.split("_")[1]
             n = rows[:, col["neighbours_" + r]]
             out.append(np.where(n > 0, rows[:, col["agreeing_" + r]] / np.maximum(n, 1), 0.0))
+        elif name.startswith("relneighbours_"):
+            n = rows[:, col["neighbours_" + name.split("_")[1]]]
+            out.append(n / max(float(np.median(n)), 1.0))
+        elif name == "log_correlation_margin":
+            out.append(np.log(np.maximum(rows[:, col["correlation_margin"]], 0.0) + 0.01))
+        elif name == "relcorrelation":
+            out.append(rows[:, col["correlation"]] - float(np.median(rows[:, col["correlation"]])))
         else:
             out.append(rows[:, col[name]])
     return np.stack(out, axis=1)
@@ -172,14 +181,21 @@ def main():
     parser.add_argument("--cache", default="", help="keep/reuse the match reports in this folder")
     parser.add_argument("--features", default=",".join(FEATURES),
                         help="comma-separated subset of the features to fit")
+    parser.add_argument("--check", default="",
+                        help="a folder of pairs scored only: the model fitted on all --dataset "
+                             "pairs ranks them (a tuning / check split)")
     parser.add_argument("--sgbm-features", action="store_true",
                         help="experiment: add StereoSGBM's agreement (within 1 px) and validity at "
                              "uniqueness 0 and 10 as features (needs cv2)")
     args = parser.parse_args()
     FEATURES[:] = [f for f in args.features.split(",") if f]
     pairs = {}
-    for name in sorted(os.listdir(args.dataset)):
-        directory = os.path.join(args.dataset, name)
+    folders = [(args.dataset, n, False) for n in sorted(os.listdir(args.dataset))]
+    if args.check:
+        folders += [(args.check, n, True) for n in sorted(os.listdir(args.check))]
+    checked = {}
+    for parent, name, is_check in folders:
+        directory = os.path.join(parent, name)
         if not os.path.isdir(directory):
             continue
         loaded = load_pair(directory)
@@ -208,7 +224,7 @@ def main():
                 agree = valid & (np.abs(np.where(valid, sgbm, 0.0) - disparity[known]) <= 1.0)
                 extra += [agree.astype(np.float64), valid.astype(np.float64)]
             X = np.hstack([X, np.stack(extra, axis=1)])
-        pairs[name] = (X, correct, rows[known][:, col["confidence"]])
+        (checked if is_check else pairs)[name] = (X, correct, rows[known][:, col["confidence"]])
     names = list(pairs)
     X_all = np.vstack([pairs[n][0] for n in names])
     y_all = np.concatenate([pairs[n][1] for n in names])
@@ -234,6 +250,15 @@ def main():
     print(f"| pooled (leave-one-pair-out) | {len(y)} | {100 * (1 - y.mean()):.1f} | "
           f"{top_error(c, y, 0.25):.1f} | {top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | "
           f"{top_error(b, y, 0.25):.1f} |")
+    if checked:
+        print("\n| check pair (fitted on every tuning pair) | matches | error all % | top 25 % | "
+              "top 50 % | top 75 % | top 25 % (current build) |")
+        print("|---|---:|---:|---:|---:|---:|---:|")
+        for name, (X, y, built) in checked.items():
+            c = sigmoid(design(X, args.cap) @ w)
+            print(f"| {name} | {len(y)} | {100 * (1 - y.mean()):.1f} | {top_error(c, y, 0.25):.1f} | "
+                  f"{top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | "
+                  f"{top_error(built, y, 0.25):.1f} |")
     # What a value of the built confidence means (the reports' own column, pooled): what
     # --min-confidence T keeps and how often the kept matches are wrong.
     print("\n| --min-confidence (current build) | matches kept % | error of kept % |")

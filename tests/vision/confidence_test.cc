@@ -171,6 +171,26 @@ TEST(MatchConfidence, RisesWithAgreementAndSupportAndStaysInZeroOne) {
   EXPECT_NE(CensusConfidenceOptions().bias, ConfidenceOptions{}.bias);
 }
 
+// hnn-default's model reads how many matches lie within 3 and 6 px (edge continuity) but not
+// how many within 12 and 24 px: that is how textured the scene is (a repeated facade outdoors is
+// dense and wrong), so two matches whose neighbourhoods agree alike rank alike however dense.
+TEST(MatchConfidence, CensusModelDoesNotRankByHowTexturedTheSceneIs) {
+  const ConfidenceOptions census = CensusConfidenceOptions();
+  StereoMatch plain = MatchAt(10.0f, 10.0f, -5.0f, 0.0f);
+  plain.correlation = 0.75f;
+  plain.correlation_margin = 0.2f;
+  plain.neighbours = {7, 23, 60, 200};
+  plain.agreeing = {7, 23, 54, 180};
+  StereoMatch textured = plain;
+  textured.neighbours = {7, 23, 120, 400};
+  textured.agreeing = {7, 23, 108, 360};  // the same shares agree
+  EXPECT_FLOAT_EQ(MatchConfidence(plain, census), MatchConfidence(textured, census));
+  StereoMatch broken = plain;  // fewer matches along the edge itself: less continuity
+  broken.neighbours = {3, 10, 60, 200};
+  broken.agreeing = {3, 10, 54, 180};
+  EXPECT_LT(MatchConfidence(broken, census), MatchConfidence(plain, census));
+}
+
 TEST(ConfidenceOptions, RefusesNonFiniteWeights) {
   ConfidenceOptions options;
   options.w_agreement[1] = std::numeric_limits<double>::quiet_NaN();

@@ -54,14 +54,17 @@ std::string ConfidenceOptions::Check() const {
 
 ConfidenceOptions CensusConfidenceOptions() {
   // scripts/fit_confidence.py on hnn-default's matches (census 5 x 5 / 13 x 13 / gamma 20,
-  // K = 3, 14 px support), pooled over the five shared pairs (docs/accuracy.md, "Confidence").
+  // K = 3, 14 px support), pooled over the tuning pairs (docs/accuracy.md, "Confidence"). The
+  // neighbour counts at 12 and 24 px weigh 0: they measure how textured the scene is, not
+  // whether a match is right (a repeated facade is dense and wrong), so a fit on indoor scenes
+  // would carry them to outdoor ones wrongly; the counts at 3 and 6 px (edge continuity) stay.
   ConfidenceOptions o;
-  o.bias = -5.01896;
+  o.bias = -4.72899;
   o.w_potential_margin = 0.0;
-  o.w_correlation = 4.70079;
-  o.w_correlation_margin = 2.9395;
-  o.w_agreement = {0.295358, -0.520665, 1.18033, 1.56097};
-  o.w_neighbours = {0.0617909, 0.0183381, 0.00178102, 0.00234654};
+  o.w_correlation = 4.20671;
+  o.w_correlation_margin = 3.65973;
+  o.w_agreement = {-0.0399811, 0.15819, 1.28154, 1.12104};
+  o.w_neighbours = {0.030939, 0.0530887, 0.0, 0.0};
   o.w_surface_residual = 0.0;
   return o;
 }
