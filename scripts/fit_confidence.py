@@ -13,7 +13,7 @@ It prints the coefficients to paste into ConfidenceOptions, and for each pair - 
 OTHER pairs (leave-one-pair-out), so the figure is one the model has not seen - the error rate of
 all matches and of the top 25 / 50 / 75 % by confidence.
 
-    python3 scripts/fit_confidence.py --binary build/hnnstereo --dataset ../shared/datasets
+    python3 scripts/fit_confidence.py --binary build/hnnstereo --dataset TUNING_DIR --check CHECK_DIR
 Needs numpy and Pillow (pip install numpy pillow).
 """
 import argparse
@@ -27,12 +27,13 @@ import tempfile
 import numpy as np
 from PIL import Image
 
-# The fitted default (ConfidenceOptions: the census data term's model, which weighs the
-# potential margin and the surface residual 0); --features picks another set, from these and
-# "potential_margin", "surface_residual" (docs/accuracy.md, "Confidence").
+# The fitted default (CensusConfidenceOptions, which weighs the potential margin, the surface
+# residual and the neighbour counts at 12 and 24 px 0); --features picks another set, from these
+# and "potential_margin", "surface_residual", "neighbours_12", "neighbours_24",
+# "relneighbours_R", "relcorrelation", "log_correlation_margin" (docs/accuracy.md).
 RADII = (3, 6, 12, 24)
 FEATURES = (["correlation", "correlation_margin"] +
-            [f"agreement_{r}" for r in RADII] + [f"neighbours_{r}" for r in RADII])
+            [f"agreement_{r}" for r in RADII] + ["neighbours_3", "neighbours_6"])
 
 
 def feature_columns(rows, col, names):
@@ -254,11 +255,11 @@ def main():
         print("\n| check pair (fitted on every tuning pair) | matches | error all % | top 25 % | "
               "top 50 % | top 75 % | top 25 % (current build) |")
         print("|---|---:|---:|---:|---:|---:|---:|")
-        for name, (X, y, built) in checked.items():
-            c = sigmoid(design(X, args.cap) @ w)
-            print(f"| {name} | {len(y)} | {100 * (1 - y.mean()):.1f} | {top_error(c, y, 0.25):.1f} | "
-                  f"{top_error(c, y, 0.5):.1f} | {top_error(c, y, 0.75):.1f} | "
-                  f"{top_error(built, y, 0.25):.1f} |")
+        for name, (X_check, y_check, built_check) in checked.items():
+            c_check = sigmoid(design(X_check, args.cap) @ w)
+            print(f"| {name} | {len(y_check)} | {100 * (1 - y_check.mean()):.1f} | "
+                  f"{top_error(c_check, y_check, 0.25):.1f} | {top_error(c_check, y_check, 0.5):.1f} | "
+                  f"{top_error(c_check, y_check, 0.75):.1f} | {top_error(built_check, y_check, 0.25):.1f} |")
     # What a value of the built confidence means (the reports' own column, pooled): what
     # --min-confidence T keeps and how often the kept matches are wrong.
     print("\n| --min-confidence (current build) | matches kept % | error of kept % |")
