@@ -82,6 +82,15 @@ TEST_F(EvalCli, WritesJsonMarkdownAndPlotForOneSet) {
   const cv::Mat ranked_plot = cv::imread(Path("eval.middlebury2003_teddy.png"));
   ASSERT_FALSE(ranked_plot.empty());
   EXPECT_GE(ranked_plot.cols, 800);
+  // The confidence calibration of both HNN presets: the pair, its scene (indoor) and overall.
+  EXPECT_EQ(pair["scene"], "indoor");
+  const nlohmann::json& calibration = json["ranked"]["confidence_calibration"];
+  ASSERT_EQ(calibration.size(), 6u);
+  EXPECT_EQ(calibration[1]["group"], "indoor");
+  double binned = 0.0;
+  for (const auto& bin : calibration[2]["bins"]) binned += bin["matches"].get<double>();
+  EXPECT_NEAR(binned, pair["methods"][0]["n_nonoccluded"].get<double>(), 0.5);
+  EXPECT_FALSE(cv::imread(Path("eval.calibration.png")).empty());
   // The vendored Teddy ships its right-view ground truth: occlusions from the left-right check,
   // as for the shared copy, and eval says so.
   EXPECT_EQ(pair["occlusion_source"], "left-right check");
