@@ -124,8 +124,9 @@ class CellSensor {
     const SensedPair pair = SenseCellPair(args_.left, args_.right, calibration_, args_.calib,
                                           args_.cell, runtime_.get());
     if (status_) {
+      // The page draws on the left image as captured, through the lens (web/cell_status.h).
       status_->SetSensed(ObjectsFileJson(pair, args_.cell, args_.left, args_.right, args_.calib),
-                         OverlayImageOf(pair), calibration_.P1);
+                         pair.left.original, calibration_.P1, calibration_.intrinsics);
     }
     return robot::SensedCycle{SensedObjectsOf(pair.report), capture_time_s};
   }

@@ -17,7 +17,6 @@
 #include "calib/calibration.h"
 #include "robot/pick_planning.h"
 #include "common/image.h"
-#include "vision/stereo/lens_distortion.h"
 #include "web/cell_status.h"
 
 namespace hnnstereo::app {
@@ -52,15 +51,12 @@ void RunView(ViewArgs& args) {
     calib_path = objects["calib"].get<std::string>();
   }
   std::optional<calib::ProjectionMatrix> P1;
-  cv::Mat image = left.original;
+  std::optional<calib::Intrinsics> intrinsics;  // the outlines go through the lens (cell_status.h)
   if (!calib_path.empty()) {
     try {
       const calib::StereoCalibration calibration = calib::LoadCalibration(calib_path);
       P1 = calibration.P1;
-      if (calibration.intrinsics && !calibration.intrinsics->D1.empty()) {
-        image = vision::UndistortImage(left.grey, calibration.intrinsics->K1,
-                                       calibration.intrinsics->D1);
-      }
+      intrinsics = calibration.intrinsics;
     } catch (const std::exception& error) {
       if (calib_given) throw std::invalid_argument(std::string("--calib: ") + error.what());
       std::cerr << "hnnstereo: notice: the parts are shown without outlines: cannot use the "
@@ -70,7 +66,7 @@ void RunView(ViewArgs& args) {
   }
   web::CellStatusBoard board;
   web::CellStatusRecorder status(&board, "view");
-  status.SetSensed(objects, image, P1);
+  status.SetSensed(objects, left.original, P1, intrinsics);
   status.PublishNow();
   const auto server = StartCellPage(board, page);
   if (!args.quiet) {

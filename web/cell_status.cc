@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vision/stereo/lens_distortion.h"
 #include "vision/stereo/overlay.h"
 #include "vision/sensing/plots.h"
 
@@ -33,7 +34,7 @@ const char* AckName(robot::AckKind ack) {
 }
 
 // A part where the page draws it: its top face's outline, centre and yaw line in left-image
-// pixels, projected with P1 at the top face's height.
+// pixels, projected with P1 at the top face's height (and through the lens, when there is one).
 struct PartPixels {
   std::vector<cv::Point2d> outline;  ///< closed polygon; empty when the file has no top face
   cv::Point2d centre;
@@ -42,12 +43,24 @@ struct PartPixels {
 
 constexpr double kYawLineMm = 40.0;  // as vision::DrawObjectOverlay
 
-std::optional<cv::Point2d> Project(const calib::ProjectionMatrix& P1, const Eigen::Vector3d& x) {
-  const Eigen::Vector3d h = P1 * x.homogeneous();
+// The left camera: P1, and its lens when P1 maps to undistorted pixels.
+struct LeftCamera {
+  const calib::ProjectionMatrix& P1;
+  const calib::Intrinsics* lens = nullptr;  ///< K1, D1; null or empty D1: pinhole
+};
+
+std::optional<cv::Point2d> Project(const LeftCamera& camera, const Eigen::Vector3d& x) {
+  const Eigen::Vector3d h = camera.P1 * x.homogeneous();
   if (!(h.z() > 0.0) || !std::isfinite(h.x() / h.z()) || !std::isfinite(h.y() / h.z())) {
     return std::nullopt;
   }
-  return cv::Point2d(h.x() / h.z(), h.y() / h.z());
+  if (camera.lens == nullptr || camera.lens->D1.empty()) {
+    return cv::Point2d(h.x() / h.z(), h.y() / h.z());
+  }
+  const Eigen::Vector2f undistorted = h.hnormalized().cast<float>();
+  const Eigen::Vector2f pixel =
+      vision::DistortPoints({undistorted}, camera.lens->K1, camera.lens->D1).front();
+  return cv::Point2d(pixel.x(), pixel.y());
 }
 
 // The part's yaw (deg); none for a round part (yaw_deg null or round true) or a missing one.
@@ -59,21 +72,20 @@ std::optional<double> YawOf(const nlohmann::json& object) {
 }
 
 // Null when the object lacks a centroid or a point falls behind the camera.
-std::optional<PartPixels> PartInImage(const nlohmann::json& object,
-                                      const calib::ProjectionMatrix& P1) {
+std::optional<PartPixels> PartInImage(const nlohmann::json& object, const LeftCamera& camera) {
   try {
     const auto& c = object.at("centroid");
     const Eigen::Vector3d centre(c.at(0).get<double>(), c.at(1).get<double>(),
                                  c.at(2).get<double>());
     PartPixels pixels;
-    const auto centre_px = Project(P1, centre);
+    const auto centre_px = Project(camera, centre);
     if (!centre_px) return std::nullopt;
     pixels.centre = *centre_px;
     // A round part (yaw_deg null) has no orientation, so no yaw line.
     if (const auto yaw_deg = YawOf(object)) {
       const double yaw = *yaw_deg * std::numbers::pi / 180.0;
       const auto tip_px =
-          Project(P1, centre + kYawLineMm * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0));
+          Project(camera, centre + kYawLineMm * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0));
       if (!tip_px) return std::nullopt;
       pixels.yaw_tip = *tip_px;
     }
@@ -101,7 +113,7 @@ std::optional<PartPixels> PartInImage(const nlohmann::json& object,
       }
     }
     for (const Eigen::Vector3d& corner : outline) {
-      const auto px = Project(P1, corner);
+      const auto px = Project(camera, corner);
       if (!px) return std::nullopt;
       pixels.outline.push_back(*px);
     }
@@ -172,7 +184,7 @@ nlohmann::json CellState::PartsJson() const {
       part["reason"] = "";
     }
     if (P1 && !left_image.empty()) {
-      if (const auto pixels = PartInImage(object, *P1)) {
+      if (const auto pixels = PartInImage(object, {*P1, intrinsics ? &*intrinsics : nullptr})) {
         part["centre_px"] = PointJson(pixels->centre);
         if (pixels->yaw_tip) part["yaw_tip_px"] = PointJson(*pixels->yaw_tip);
         nlohmann::json outline = nlohmann::json::array();
@@ -269,7 +281,7 @@ cv::Mat CellState::DrawOverlay() const {
   if (!P1) return canvas;
   const nlohmann::json& list = ObjectList(objects);
   for (std::size_t index = 0; index < list.size(); ++index) {
-    const auto pixels = PartInImage(list[index], *P1);
+    const auto pixels = PartInImage(list[index], {*P1, intrinsics ? &*intrinsics : nullptr});
     if (!pixels) continue;
     const cv::Scalar colour = vision::LabelColour(static_cast<int>(index));
     if (!pixels->outline.empty()) {
@@ -331,10 +343,12 @@ CellStatusRecorder::CellStatusRecorder(CellStatusBoard* board, std::string mode)
 }
 
 void CellStatusRecorder::SetSensed(nlohmann::json objects, cv::Mat left_image,
-                                   std::optional<calib::ProjectionMatrix> P1) {
+                                   std::optional<calib::ProjectionMatrix> P1,
+                                   std::optional<calib::Intrinsics> intrinsics) {
   next_.objects = std::move(objects);
   next_.left_image = std::move(left_image);
   next_.P1 = std::move(P1);
+  next_.intrinsics = std::move(intrinsics);
   next_.outcomes.clear();
   next_.objects_cycle = 0;
   ++next_.image_version;

@@ -56,8 +56,11 @@ struct CellState {
 
   nlohmann::json objects;  ///< OBJECTS.json, exactly; null before the first sensing
   int objects_cycle = 0;   ///< the cycle that sensed them (0: not from a cycle)
-  cv::Mat left_image;      ///< the image they were sensed on; may be empty
+  cv::Mat left_image;      ///< the left image as captured (its own pixels); may be empty
   std::optional<calib::ProjectionMatrix> P1;  ///< to draw the parts on it; empty: no outlines
+  /// A calibration with lens distortion refers P1 to undistorted pixels (docs/calibration.md):
+  /// the outlines are projected with P1, then through K1 and D1 into left_image's pixels.
+  std::optional<calib::Intrinsics> intrinsics;
   /// Per object id: what became of its pick in objects_cycle (absent: not offered to a link).
   std::map<int, robot::PickOutcome> outcomes;
 
@@ -125,10 +128,12 @@ class CellStatusRecorder {
  public:
   CellStatusRecorder(CellStatusBoard* board, std::string mode);
 
-  /// The parts just sensed (OBJECTS.json), the image and camera they were sensed on. Published
-  /// with the next RecordCycle (the cycle they belong to).
+  /// The parts just sensed (OBJECTS.json), the left image as captured and the camera that saw
+  /// it (P1, and the lens when the calibration has one: CellState::intrinsics). Published with
+  /// the next RecordCycle (the cycle they belong to).
   void SetSensed(nlohmann::json objects, cv::Mat left_image,
-                 std::optional<calib::ProjectionMatrix> P1);
+                 std::optional<calib::ProjectionMatrix> P1,
+                 std::optional<calib::Intrinsics> intrinsics = std::nullopt);
   /// After each cycle (CellLoopOptions::on_cycle): counts it, publishes.
   void RecordCycle(const robot::CycleLog& log, const robot::RobotLink& link);
   /// While waiting for a trigger (CellLoopOptions::on_idle): publishes the link's state.

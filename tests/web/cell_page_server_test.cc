@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "robot/cell_loop.h"
+#include "vision/stereo/lens_distortion.h"
 
 namespace hnnstereo::web {
 namespace {
@@ -197,6 +198,41 @@ TEST(CellPageOptions, MalformedAddressesAreRefused) {
   }
   EXPECT_EQ(ParseHttpAddress(":8080").host, "127.0.0.1");
   EXPECT_EQ(ParseHttpAddress("[::1]:8080").port, 8080);
+}
+
+// A calibration with lens distortion refers P1 to undistorted pixels; the page shows the image as
+// captured, so a part's outline and centre go through the lens (k1 = -0.25 moves a point 190 px
+// off centre by about 3 px).
+TEST(CellState, OutlinesGoThroughTheLensIntoTheCapturedImagesPixels) {
+  CellState state;
+  state.left_image = cv::Mat(480, 640, CV_8UC1, cv::Scalar(90));
+  state.P1 = DownwardCamera();
+  state.objects = nlohmann::json::parse(R"({"objects": [
+      {"id": 1, "centroid": [150.0, 100.0, 20.0], "height": 20.0, "yaw_deg": 0.0, "points": 90,
+       "round": false, "top_rectangle": {"centre": [150.0, 100.0], "length": 40.0,
+                                         "width": 30.0, "yaw_deg": 0.0}}]})");
+  const nlohmann::json pinhole = state.PartsJson()[0];
+  calib::Intrinsics lens;
+  lens.K1 << 600, 0, 320, 0, 600, 240, 0, 0, 1;
+  lens.K2 = lens.K1;
+  lens.D1 = lens.D2 = {-0.25, 0.08, 0.001, -0.001};
+  state.intrinsics = lens;
+  const nlohmann::json through_lens = state.PartsJson()[0];
+  // The page's pixels are rounded to 0.1 px (both ways).
+  auto pixel = [](const nlohmann::json& p) {
+    return Eigen::Vector2f(p[0].get<float>(), p[1].get<float>());
+  };
+  const Eigen::Vector2f centre = pixel(pinhole["centre_px"]);
+  const Eigen::Vector2f expected = vision::DistortPoints({centre}, lens.K1, lens.D1).front();
+  EXPECT_LT((pixel(through_lens["centre_px"]) - expected).norm(), 0.15);
+  EXPECT_GT((pixel(through_lens["centre_px"]) - centre).norm(), 2.0) << "the lens moved it";
+  ASSERT_EQ(through_lens["outline_px"].size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) {
+    const Eigen::Vector2f corner = pixel(pinhole["outline_px"][k]);
+    EXPECT_LT((pixel(through_lens["outline_px"][k]) -
+               vision::DistortPoints({corner}, lens.K1, lens.D1).front()).norm(), 0.15);
+  }
+  EXPECT_FALSE(state.DrawOverlay().empty());
 }
 
 TEST(CellStatusRecorder, CountsCyclesKeepsTheLast100AndMarksEachPick) {
