@@ -154,6 +154,24 @@ struct PositionSensingOptions {
   /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC along
   /// the epipolar line; the left-right check stays off. SubPixelMatchesTightenTheHeights.
   RefinementOptions refinement = PickCellRefinementOptions();
+  /// The image width (px) that the pixel-unit settings above and the matcher's feature cap are
+  /// given for: render's 640 x 480 cell, where they were tuned. SensePositions runs
+  /// ScaledForImage(the pair's size); 0 runs every setting as given.
+  /// ImagesWiderThanTheReferenceAreSensedWithScaledSettings.
+  int reference_image_width_px = 640;
+  /// The feature cap grows as s^this (ScaledForImage). The cap keeps features spread over the
+  /// image (grid bucketing) and a wider image has s times the edge pixels, so with the cap as
+  /// given the features along an edge lie s times further apart and few stay within the 8 px
+  /// support radius: parts come apart. On render's scenes at s = 3.2, 0.5 still splits some
+  /// tops, 1 costs over 4x the reference's match time for no more parts; 0.6 keeps them whole.
+  double feature_cap_exponent = 0.6;
+  /// These options for images `size` wide, with s = size.width / reference_image_width_px (the
+  /// focal length in px grows with the width at a given field of view, so one px of the
+  /// reference spans s px): image_border_px (a margin of the field of view) times s, the
+  /// matcher's max_features times s^feature_cap_exponent. Support radius, epipolar gate,
+  /// correlation window and Canny thresholds stay: they describe the image's sampling, not the
+  /// scene. s <= 1 or reference 0: unchanged.
+  PositionSensingOptions ScaledForImage(const cv::Size& size) const;
   std::string Check() const;
 };
 
@@ -188,6 +206,10 @@ struct PositionSensingReport {
   int small_flagged = 0;  ///< small parts dropped as flagged (min_strong_points_whole_top)
   int merged = 0;                                ///< parts flagged merged (min_top_fill)
   std::vector<ObjectPose> objects;               ///< tallest first
+  /// s of PositionSensingOptions::ScaledForImage: the images' width over the reference width
+  /// (1 when the settings ran as given).
+  double image_scale = 1.0;
+  int max_features = 0;                          ///< the feature cap the matcher ran (0: none)
   PositionSensingTiming timing_ms;
 };
 
@@ -199,7 +221,8 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
                                      const PositionSensingOptions& options, ocl::Runtime* runtime);
 
 /// The same pipeline after matching (tests, and matches from elsewhere). `left_grey` (the left
-/// image) is needed for the edge-angle test; empty skips it.
+/// image) is needed for the edge-angle test; empty skips it. The options are scaled to its size
+/// (ScaledForImage) as SensePositions scales them.
 PositionSensingReport SensePositionsFromMatches(MatchReport match,
                                                 const calib::StereoCalibration& calibration,
                                                 const PositionSensingOptions& options,
