@@ -280,6 +280,10 @@ PositionSensingOptions PositionSensingOptions::ScaledForImage(const cv::Size& si
   if (matcher.features.max_features > 0) {
     const double cap = matcher.features.max_features * std::pow(s, feature_cap_exponent);
     scaled.matcher.features.max_features = static_cast<int>(std::lround(cap));
+    const double points = std::pow(s, 0.5 * feature_cap_exponent);
+    scaled.min_strong_points = static_cast<int>(std::lround(min_strong_points * points));
+    scaled.min_strong_points_whole_top =
+        static_cast<int>(std::lround(min_strong_points_whole_top * points));
   }
   return scaled;
 }

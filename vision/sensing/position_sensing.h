@@ -168,9 +168,12 @@ struct PositionSensingOptions {
   /// These options for images `size` wide, with s = size.width / reference_image_width_px (the
   /// focal length in px grows with the width at a given field of view, so one px of the
   /// reference spans s px): image_border_px (a margin of the field of view) times s, the
-  /// matcher's max_features times s^feature_cap_exponent. Support radius, epipolar gate,
-  /// correlation window and Canny thresholds stay: they describe the image's sampling, not the
-  /// scene. s <= 1 or reference 0: unchanged.
+  /// matcher's max_features times s^feature_cap_exponent, and the part-size counts
+  /// min_strong_points and min_strong_points_whole_top by the square root of that, as a part's
+  /// points grow (1.2-1.5x at s = 3.2 on render's scenes; with the counts as given, slivers of
+  /// sides pass as parts). Support radius, epipolar gate, correlation window and Canny
+  /// thresholds stay: they describe the image's sampling, not the scene. s <= 1 or reference 0:
+  /// unchanged.
   PositionSensingOptions ScaledForImage(const cv::Size& size) const;
   std::string Check() const;
 };
