@@ -55,6 +55,7 @@ TEST(PickCameraResolution, ImagesWiderThanTheReferenceAreSensedWithScaledSetting
 // One seed at one resolution, sensed as `pick` senses (the true cameras of render's calib.yml).
 struct Sensed {
   TruthComparison comparison;
+  std::vector<bool> merged;  ///< per detected part: flagged (the safety gate refuses it)
   std::size_t true_parts = 0;
   double match_ms = 0.0;
   double image_scale = 1.0;
@@ -70,14 +71,17 @@ Sensed RenderAndSense(std::uint64_t seed, int width, int height, ocl::Runtime* r
   const RenderedScene scene = RenderScene(render);
   const PositionSensingReport report =
       SensePositions(scene.left, scene.right, scene.cameras, PositionSensingOptions{}, runtime);
-  return {CompareWithTruth(report.objects, scene.objects), scene.objects.size(),
-          report.timing_ms.match, report.image_scale, report.max_features};
+  Sensed sensed{CompareWithTruth(report.objects, scene.objects), {}, scene.objects.size(),
+                report.timing_ms.match, report.image_scale, report.max_features};
+  for (const ObjectPose& pose : report.objects) sensed.merged.push_back(pose.merged);
+  return sensed;
 }
 
-// Recall, false parts, centroid errors and match times over scenes.
+// Recall, false parts, centroid errors (all paired parts, and those not flagged: what a robot
+// gets) and match times over scenes.
 struct Figures {
   int true_parts = 0, detected = 0, false_objects = 0;
-  std::vector<double> centroid_mm;
+  std::vector<double> centroid_mm, sent_centroid_mm;
   double match_ms = 0.0;
   void Add(const Sensed& sensed) {
     true_parts += static_cast<int>(sensed.true_parts);
@@ -85,21 +89,25 @@ struct Figures {
     false_objects += sensed.comparison.false_objects;
     match_ms += sensed.match_ms;
     for (const TruthPairing& pair : sensed.comparison.pairs) {
-      if (pair.detected_index >= 0) centroid_mm.push_back(pair.centroid_error_mm);
+      if (pair.detected_index < 0) continue;
+      centroid_mm.push_back(pair.centroid_error_mm);
+      if (!sensed.merged[static_cast<std::size_t>(pair.detected_index)]) {
+        sent_centroid_mm.push_back(pair.centroid_error_mm);
+      }
     }
   }
-  double Percentile(double q) const {
-    if (centroid_mm.empty()) return 0.0;
-    std::vector<double> sorted = centroid_mm;
+  static double Percentile(const std::vector<double>& values, double q) {
+    if (values.empty()) return 0.0;
+    std::vector<double> sorted = values;
     std::sort(sorted.begin(), sorted.end());
     const auto at = static_cast<std::size_t>(q * static_cast<double>(sorted.size()));
     return sorted[std::min(sorted.size() - 1, at)];
   }
   void Print(const std::string& title) const {
     std::cout << title << ": recall " << detected << "/" << true_parts << ", false "
-              << false_objects << ", centroid median " << Percentile(0.5) << " p99 "
-              << Percentile(0.99) << " max " << Percentile(1.0) << " mm, match " << match_ms
-              << " ms\n";
+              << false_objects << ", centroid median " << Percentile(centroid_mm, 0.5) << " p99 "
+              << Percentile(centroid_mm, 0.99) << " mm, not flagged p99 "
+              << Percentile(sent_centroid_mm, 0.99) << " mm, match " << match_ms << " ms\n";
   }
 };
 
@@ -122,7 +130,7 @@ TEST(PickCameraResolution, A2048x1536SceneIsSensedAsWellAsAt640x480) {
   EXPECT_GE(camera.detected, reference.detected);
   EXPECT_EQ(camera.detected, camera.true_parts);
   EXPECT_LE(camera.false_objects, reference.false_objects);
-  EXPECT_LE(camera.Percentile(1.0), 2.0);
+  EXPECT_LE(Figures::Percentile(camera.centroid_mm, 1.0), 2.0);
 }
 
 TEST(PickCameraResolution, AcceptanceAgainst640x480) {
@@ -152,7 +160,7 @@ TEST(PickCameraResolution, AcceptanceAgainst640x480) {
             << "\n";
   EXPECT_GE(camera.detected, reference.detected);
   EXPECT_LE(camera.false_objects, reference.false_objects);
-  EXPECT_LE(camera.Percentile(0.99), 2.0);
+  EXPECT_LE(Figures::Percentile(camera.sent_centroid_mm, 0.99), 2.0);
 }
 
 }  // namespace
