@@ -71,8 +71,12 @@ Sensed RenderAndSense(std::uint64_t seed, int width, int height, ocl::Runtime* r
   const RenderedScene scene = RenderScene(render);
   const PositionSensingReport report =
       SensePositions(scene.left, scene.right, scene.cameras, PositionSensingOptions{}, runtime);
-  Sensed sensed{CompareWithTruth(report.objects, scene.objects), {}, scene.objects.size(),
-                report.timing_ms.match, report.image_scale, report.max_features};
+  Sensed sensed;
+  sensed.comparison = CompareWithTruth(report.objects, scene.objects);
+  sensed.true_parts = scene.objects.size();
+  sensed.match_ms = report.timing_ms.match;
+  sensed.image_scale = report.image_scale;
+  sensed.max_features = report.max_features;
   for (const ObjectPose& pose : report.objects) sensed.merged.push_back(pose.merged);
   return sensed;
 }

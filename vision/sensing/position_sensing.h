@@ -162,17 +162,18 @@ struct PositionSensingOptions {
   /// The feature cap grows as s^this (ScaledForImage). The cap keeps features spread over the
   /// image (grid bucketing) and a wider image has s times the edge pixels, so with the cap as
   /// given the features along an edge lie s times further apart and few stay within the 8 px
-  /// support radius: tops come apart in pieces, small parts are lost. On render's scenes at
-  /// s = 3.2, 0.6 still splits some tops; 0.8 keeps them whole at about 2.5x the features.
+  /// support radius: tops come apart in pieces, small parts are lost. Chosen on render's scenes
+  /// at s = 3.2 (2.5x the features): a smaller exponent leaves some tops in pieces, a larger one
+  /// adds match time (docs/sensing.md).
   double feature_cap_exponent = 0.8;
   /// These options for images `size` wide, with s = size.width / reference_image_width_px (the
   /// focal length in px grows with the width at a given field of view, so one px of the
   /// reference spans s px): image_border_px (a margin of the field of view) times s, the
   /// matcher's max_features times s^feature_cap_exponent, and the part-size counts
   /// min_strong_points and min_strong_points_whole_top by the square root of that, as a part's
-  /// points grow (with the counts as given, slivers of sides pass as parts). Support radius, epipolar gate, correlation window and Canny
-  /// thresholds stay: they describe the image's sampling, not the scene. s <= 1 or reference 0:
-  /// unchanged.
+  /// points grow (with the counts as given, slivers of sides pass as parts). Support radius,
+  /// epipolar gate, correlation window and Canny thresholds stay: they describe the image's
+  /// sampling, not the scene. No cap (0): the border alone. s <= 1 or reference 0: unchanged.
   PositionSensingOptions ScaledForImage(const cv::Size& size) const;
   std::string Check() const;
 };
