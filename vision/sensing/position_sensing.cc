@@ -272,6 +272,22 @@ RefinementOptions PickCellRefinementOptions() {
   return options;
 }
 
+PositionSensingOptions PositionSensingOptions::ScaledForImage(const cv::Size& size) const {
+  PositionSensingOptions scaled = *this;
+  if (reference_image_width_px <= 0 || size.width <= reference_image_width_px) return scaled;
+  const double s = static_cast<double>(size.width) / reference_image_width_px;
+  scaled.image_border_px = image_border_px * s;
+  if (matcher.features.max_features > 0) {
+    const double cap = matcher.features.max_features * std::pow(s, feature_cap_exponent);
+    scaled.matcher.features.max_features = static_cast<int>(std::lround(cap));
+    const double points = std::pow(s, 0.5 * feature_cap_exponent);
+    scaled.min_strong_points = static_cast<int>(std::lround(min_strong_points * points));
+    scaled.min_strong_points_whole_top =
+        static_cast<int>(std::lround(min_strong_points_whole_top * points));
+  }
+  return scaled;
+}
+
 std::string PositionSensingOptions::Check() const {
   if (std::string problem = matcher.Check(); !problem.empty()) return problem;
   if (matcher.candidates.rectified) {
@@ -308,6 +324,10 @@ std::string PositionSensingOptions::Check() const {
     std::ostringstream out;
     out << "max_reprojection_error_px must be positive (is " << max_reprojection_error_px << ")";
     return out.str();
+  }
+  if (reference_image_width_px < 0) return "reference_image_width_px must be >= 0 (0: no scaling)";
+  if (!(feature_cap_exponent >= 0.0 && feature_cap_exponent <= 2.0)) {
+    return "feature_cap_exponent must be in [0, 2]";
   }
   if (std::string problem = top_edges.Check(); !problem.empty()) return problem;
   if (std::string problem = refinement.Check(); !problem.empty()) return problem;
@@ -683,13 +703,13 @@ void EstimateAndFlagPoses(const calib::StereoCalibration& calibration,
 
 }  // namespace
 
-PositionSensingReport SensePositionsFromMatches(MatchReport match,
-                                                const calib::StereoCalibration& calibration,
-                                                const PositionSensingOptions& options,
-                                                const cv::Mat& left_grey) {
-  if (const std::string problem = options.Check(); !problem.empty()) {
-    throw std::invalid_argument(problem);
-  }
+namespace {
+
+// SensePositionsFromMatches with `options` already scaled to the images (ScaledForImage).
+PositionSensingReport SenseScaledFromMatches(MatchReport match,
+                                             const calib::StereoCalibration& calibration,
+                                             const PositionSensingOptions& options,
+                                             const cv::Mat& left_grey) {
   if (const std::string problem = calibration.Check(); !problem.empty()) {
     throw std::invalid_argument("calibration: " + problem);
   }
@@ -727,6 +747,31 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   return report;
 }
 
+// What the options were scaled by, for the report.
+void NoteScale(const PositionSensingOptions& scaled, const cv::Size& size,
+               PositionSensingReport* report) {
+  if (scaled.reference_image_width_px > 0 && size.width > scaled.reference_image_width_px) {
+    report->image_scale = static_cast<double>(size.width) / scaled.reference_image_width_px;
+  }
+  report->max_features = scaled.matcher.features.max_features;
+}
+
+}  // namespace
+
+PositionSensingReport SensePositionsFromMatches(MatchReport match,
+                                                const calib::StereoCalibration& calibration,
+                                                const PositionSensingOptions& options,
+                                                const cv::Mat& left_grey) {
+  if (const std::string problem = options.Check(); !problem.empty()) {
+    throw std::invalid_argument(problem);
+  }
+  const PositionSensingOptions scaled = options.ScaledForImage(left_grey.size());
+  PositionSensingReport report =
+      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey);
+  NoteScale(scaled, left_grey.size(), &report);
+  return report;
+}
+
 PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                      const calib::StereoCalibration& calibration,
                                      const PositionSensingOptions& options, ocl::Runtime* runtime) {
@@ -744,12 +789,14 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
   }
   // One image given twice would give a fake part at a fake height (vision/setup_checks.h).
   CheckDistinctViews(left_grey, right_grey);
-  MatchReport match = MatchStereo(left_grey, right_grey, &calibration, options.matcher, runtime);
+  const PositionSensingOptions scaled = options.ScaledForImage(left_grey.size());
+  MatchReport match = MatchStereo(left_grey, right_grey, &calibration, scaled.matcher, runtime);
   const auto start = std::chrono::steady_clock::now();
-  RefineMatches(left_grey, right_grey, &calibration, options.matcher, options.refinement, &match);
+  RefineMatches(left_grey, right_grey, &calibration, scaled.matcher, scaled.refinement, &match);
   const double refine_ms = MillisecondsSince(start);
   PositionSensingReport report =
-      SensePositionsFromMatches(std::move(match), calibration, options, left_grey);
+      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey);
+  NoteScale(scaled, left_grey.size(), &report);
   report.timing_ms.refine = refine_ms;
   report.timing_ms.total += refine_ms;
   return report;
@@ -792,38 +839,43 @@ nlohmann::json ObjectsJson(const PositionSensingReport& report,
     }
   }
   const auto& t = report.triangulation;
-  return {{"units", "mm"},
-          {"objects", objects},
-          {"clustering", ClusteringMethodName(options.clustering)},
-          {"yaw_method", YawMethodName(options.clustering == ClusteringMethod::kGrid
-                                           ? options.pose.yaw_method
-                                           : YawMethod::kCentralMoments)},
-          {"matches", report.match.matches.size()},
-          {"engine", report.match.solve.engine},
-          {"triangulation",
-           {{"accepted", t.accepted},
-            {"behind_camera", t.behind_camera},
-            {"large_residual", t.large_residual},
-            {"degenerate", t.degenerate},
-            {"edge_along_epipolar", t.edge_along_epipolar},
-            {"mean_residual_px", t.mean_residual_px},
-            {"max_residual_px", options.max_reprojection_error_px}}},
-          {"clustered_points",
-           {{"outside_height_window", report.clustering.n_outside_height_window},
-            {"in_small_clusters", report.clustering.n_in_small_clusters},
-            {"island_merges", report.island_merges},
-            {"top_level_splits", report.top_level_splits},
-            {"without_top_face", report.without_top_face},
-            {"narrow_top_face", report.narrow_top_face},
-            {"small_flagged", report.small_flagged},
-            {"merged", report.merged}}},
-          {"timing_ms",
-           {{"match", report.timing_ms.match},
-            {"refine", report.timing_ms.refine},
-            {"triangulate", report.timing_ms.triangulate},
-            {"cluster", report.timing_ms.cluster},
-            {"pose", report.timing_ms.pose},
-            {"total", report.timing_ms.total}}}};
+  nlohmann::json json = {{"units", "mm"},
+                         {"objects", objects},
+                         {"clustering", ClusteringMethodName(options.clustering)},
+                         {"yaw_method", YawMethodName(options.clustering == ClusteringMethod::kGrid
+                                                          ? options.pose.yaw_method
+                                                          : YawMethod::kCentralMoments)},
+                         {"matches", report.match.matches.size()},
+                         {"engine", report.match.solve.engine},
+                         {"triangulation",
+                          {{"accepted", t.accepted},
+                           {"behind_camera", t.behind_camera},
+                           {"large_residual", t.large_residual},
+                           {"degenerate", t.degenerate},
+                           {"edge_along_epipolar", t.edge_along_epipolar},
+                           {"mean_residual_px", t.mean_residual_px},
+                           {"max_residual_px", options.max_reprojection_error_px}}},
+                         {"clustered_points",
+                          {{"outside_height_window", report.clustering.n_outside_height_window},
+                           {"in_small_clusters", report.clustering.n_in_small_clusters},
+                           {"island_merges", report.island_merges},
+                           {"top_level_splits", report.top_level_splits},
+                           {"without_top_face", report.without_top_face},
+                           {"narrow_top_face", report.narrow_top_face},
+                           {"small_flagged", report.small_flagged},
+                           {"merged", report.merged}}},
+                         {"timing_ms",
+                          {{"match", report.timing_ms.match},
+                           {"refine", report.timing_ms.refine},
+                           {"triangulate", report.timing_ms.triangulate},
+                           {"cluster", report.timing_ms.cluster},
+                           {"pose", report.timing_ms.pose},
+                           {"total", report.timing_ms.total}}}};
+  // Images wider than the reference: what the settings were scaled by (ScaledForImage).
+  if (report.image_scale != 1.0) {
+    json["image_scale"] = {{"scale", report.image_scale}, {"max_features", report.max_features}};
+  }
+  return json;
 }
 
 std::string ProbeOptions::Check() const {

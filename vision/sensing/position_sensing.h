@@ -154,6 +154,27 @@ struct PositionSensingOptions {
   /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC along
   /// the epipolar line; the left-right check stays off. SubPixelMatchesTightenTheHeights.
   RefinementOptions refinement = PickCellRefinementOptions();
+  /// The image width (px) that the pixel-unit settings above and the matcher's feature cap are
+  /// given for: render's 640 x 480 cell, where they were tuned. SensePositions runs
+  /// ScaledForImage(the pair's size); 0 runs every setting as given.
+  /// ImagesWiderThanTheReferenceAreSensedWithScaledSettings.
+  int reference_image_width_px = 640;
+  /// The feature cap grows as s^this (ScaledForImage). The cap keeps features spread over the
+  /// image (grid bucketing) and a wider image has s times the edge pixels, so with the cap as
+  /// given the features along an edge lie s times further apart and few stay within the 8 px
+  /// support radius: tops come apart in pieces, small parts are lost. Chosen on render's scenes
+  /// at s = 3.2 (2.5x the features): a smaller exponent leaves some tops in pieces, a larger one
+  /// adds match time (docs/sensing.md).
+  double feature_cap_exponent = 0.8;
+  /// These options for images `size` wide, with s = size.width / reference_image_width_px (the
+  /// focal length in px grows with the width at a given field of view, so one px of the
+  /// reference spans s px): image_border_px (a margin of the field of view) times s, the
+  /// matcher's max_features times s^feature_cap_exponent, and the part-size counts
+  /// min_strong_points and min_strong_points_whole_top by the square root of that, as a part's
+  /// points grow (with the counts as given, slivers of sides pass as parts). Support radius,
+  /// epipolar gate, correlation window and Canny thresholds stay: they describe the image's
+  /// sampling, not the scene. No cap (0): the border alone. s <= 1 or reference 0: unchanged.
+  PositionSensingOptions ScaledForImage(const cv::Size& size) const;
   std::string Check() const;
 };
 
@@ -188,6 +209,10 @@ struct PositionSensingReport {
   int small_flagged = 0;  ///< small parts dropped as flagged (min_strong_points_whole_top)
   int merged = 0;                                ///< parts flagged merged (min_top_fill)
   std::vector<ObjectPose> objects;               ///< tallest first
+  /// s of PositionSensingOptions::ScaledForImage: the images' width over the reference width
+  /// (1 when the settings ran as given).
+  double image_scale = 1.0;
+  int max_features = 0;                          ///< the feature cap the matcher ran (0: none)
   PositionSensingTiming timing_ms;
 };
 
@@ -199,7 +224,8 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
                                      const PositionSensingOptions& options, ocl::Runtime* runtime);
 
 /// The same pipeline after matching (tests, and matches from elsewhere). `left_grey` (the left
-/// image) is needed for the edge-angle test; empty skips it.
+/// image) is needed for the edge-angle test; empty skips it. The options are scaled to its size
+/// (ScaledForImage) as SensePositions scales them.
 PositionSensingReport SensePositionsFromMatches(MatchReport match,
                                                 const calib::StereoCalibration& calibration,
                                                 const PositionSensingOptions& options,
