@@ -116,6 +116,38 @@ TEST(CountAgreeingNeighbours, EqualsTheDefinitionOnScatteredMatches) {
   EXPECT_EQ(matches.back().agreeing[0], 1);
 }
 
+// A coarse-to-fine pair counts in its coarsest level's pixels: matches at twice the size counted
+// at scale 1/2 get the counts of the same matches at the size the radii were chosen for, and
+// keep their own points.
+TEST(CountAgreeingNeighbours, ScaleCountsInAnImageThatManyTimesTheSize) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> x(0.0f, 200.0f), y(0.0f, 150.0f), jitter(-0.4f, 0.4f);
+  std::vector<StereoMatch> small;
+  for (int i = 0; i < 800; ++i) {
+    const float px = x(rng);
+    small.push_back(MatchAt(px, y(rng), (px < 100.0f ? -8.0f : -20.0f) + jitter(rng), 0.0f));
+  }
+  std::vector<StereoMatch> large = small;
+  for (StereoMatch& m : large) {
+    m.left *= 2.0f;
+    m.right *= 2.0f;
+  }
+  const std::vector<StereoMatch> large_points = large;
+  CountAgreeingNeighbours(small);
+  CountAgreeingNeighbours(large, 0.5f);
+  int counted_differently = 0;
+  for (std::size_t i = 0; i < small.size(); ++i) {
+    counted_differently += small[i].neighbours != large[i].neighbours ||
+                           small[i].agreeing != large[i].agreeing;
+    EXPECT_EQ(large[i].left, large_points[i].left);
+  }
+  EXPECT_EQ(counted_differently, 0);
+  // Counted in its own pixels, the large image's radii hold a quarter of the scene.
+  std::vector<StereoMatch> as_given = large_points;
+  CountAgreeingNeighbours(as_given);
+  EXPECT_LT(as_given[0].neighbours[3], large[0].neighbours[3]);
+}
+
 TEST(CountAgreeingNeighbours, LoneAndEmpty) {
   std::vector<StereoMatch> none;
   CountAgreeingNeighbours(none);

@@ -144,8 +144,22 @@ void OuterRing(const GridCopy& copy, int first, int last, std::vector<StereoMatc
 // value at the match is a: normal equations from the sums of 1, u, v, uu, uv, vv and s, us, vs
 // (per displacement component), solved with a small ridge on the slopes so that neighbours on
 // one line (an edge) still give a.
-void CountAgreeingNeighbours(std::vector<StereoMatch>& matches) {
+void CountAgreeingNeighbours(std::vector<StereoMatch>& matches, float scale) {
   if (matches.empty()) return;
+  if (scale != 1.0f) {
+    std::vector<StereoMatch> scaled = matches;
+    for (StereoMatch& m : scaled) {
+      m.left *= scale;
+      m.right *= scale;
+    }
+    CountAgreeingNeighbours(scaled);
+    for (std::size_t i = 0; i < matches.size(); ++i) {
+      matches[i].neighbours = scaled[i].neighbours;
+      matches[i].agreeing = scaled[i].agreeing;
+      matches[i].surface_residual = scaled[i].surface_residual;
+    }
+    return;
+  }
   static_assert(kAgreementRadiiPx.size() == 4 && kAgreementRadiiPx[2] == kSurfaceRadiusPx &&
                 kAgreementSlope[0] == 0.0f && kAgreementSlope[1] == 0.0f && kAgreementSlope[2] == 0.0f);
   std::vector<Eigen::Vector2f> points(matches.size());

@@ -288,8 +288,11 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
   const std::vector<hnn::DecodedMatch> decoded =
       hnn::Decode(problem, report.solve.activation, options.decode, &report.solve.potential);
   report.matches = MatchesWithMargins(problem, decoded, report.solve.potential, options.energy.B);
-  // The neighbourhood votes count every decoded winner, before any is dropped by confidence.
-  CountAgreeingNeighbours(report.matches);
+  // The neighbourhood votes count every decoded winner, before any is dropped by confidence. A
+  // coarse-to-fine pair counts them in the pixels of its coarsest level, so that the radii and the
+  // 1 px agreement cover the same part of the scene as on the pairs the model was fitted on.
+  CountAgreeingNeighbours(report.matches,
+                          std::ldexp(1.0f, -report.coarse_to_fine.levels));
   for (StereoMatch& match : report.matches) match.confidence = MatchConfidence(match, options.confidence);
   if (options.min_confidence > 0.0) {
     std::erase_if(report.matches, [&](const StereoMatch& match) {

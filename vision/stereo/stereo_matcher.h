@@ -137,8 +137,9 @@ float MatchConfidence(const StereoMatch& match, const ConfidenceOptions& options
 
 /// Fills `neighbours`, `agreeing` and `surface_residual` of every match (ConfidenceOptions) from
 /// the others' left points and displacements: a uniform grid of 24 px cells, so O(n) for evenly
-/// spread features.
-void CountAgreeingNeighbours(std::vector<StereoMatch>& matches);
+/// spread features. `scale` < 1 counts in an image `scale` times the size (points and
+/// displacements scaled; surface_residual is in those pixels).
+void CountAgreeingNeighbours(std::vector<StereoMatch>& matches, float scale = 1.0f);
 
 struct TimingMs {
   double features = 0, candidates = 0, network = 0, weights = 0, solve = 0, decode = 0, total = 0;
