@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "calib/chessboard.h"
+#include "calib/target_file.h"
 #include "common/input_limits.h"
 
 namespace hnnstereo::calib {
@@ -70,7 +71,7 @@ void WriteBoardTarget(const BoardTarget& target, cv::FileStorage* storage) {
 
 namespace {
 
-std::string Where(const std::string& path) { return "target.yml '" + path + "'"; }
+std::string Where(const std::string& path) { return TargetFileName(path); }
 
 std::string ResolvedImage(const cv::FileNode& node, const char* key, const fs::path& dir,
                           const std::string& where) {
@@ -259,13 +260,7 @@ std::optional<BoardTarget> LoadBoardTarget(const std::string& target_dir) {
   }
   BoardTarget target;
   try {
-    const std::string text = ReadTextFileWithin(path, "target.yml");
-    if (const std::string problem = CheckYamlText(text); !problem.empty()) {
-      throw std::runtime_error(Where(path) + " " + problem);
-    }
-    cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY |
-                                      cv::FileStorage::FORMAT_YAML);
-    if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");
+    cv::FileStorage storage = OpenTargetFile(path);
     const cv::FileNode root = storage.root();
     if (root["board"].empty()) return std::nullopt;
     if (!root["board"].isString() || static_cast<std::string>(root["board"]) != "chessboard") {

@@ -16,6 +16,7 @@
 #include "calib/circle_target.h"
 #include "calib/epipolar.h"
 #include "calib/fundamental.h"
+#include "calib/target_file.h"
 #include "common/input_limits.h"
 
 namespace hnnstereo::calib {
@@ -23,7 +24,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Where(const std::string& path) { return "target.yml '" + path + "'"; }
+std::string Where(const std::string& path) { return TargetFileName(path); }
 
 double ReadNumber(const cv::FileNode& node, const std::string& key, const std::string& path) {
   const cv::FileNode value = node[key];
@@ -200,13 +201,7 @@ TargetPlacement ReadPlacement(const cv::FileNode& height, const fs::path& dir,
 TargetDescription ParseTargetYaml(const std::string& path, const fs::path& dir) {
   TargetDescription target;
   try {
-    const std::string text = ReadTextFileWithin(path, "target.yml");
-    if (const std::string problem = CheckYamlText(text); !problem.empty()) {
-      throw std::runtime_error(Where(path) + " " + problem);
-    }
-    cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY |
-                                      cv::FileStorage::FORMAT_YAML);
-    if (!storage.isOpened()) throw std::runtime_error(Where(path) + " cannot be read");
+    cv::FileStorage storage = OpenTargetFile(path);
     const cv::FileNode root = storage.root();
     ReadTargetGrid(root, path, &target);
     const cv::FileNode heights = root["heights"];
