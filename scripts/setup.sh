@@ -9,7 +9,7 @@ PACKAGES=(cmake g++ ninja-build pkg-config
   libopencv-dev libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libcpp-httplib-dev
   libmodbus-dev python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
-  python3-dev python3-venv pybind11-dev python3-numpy python3-opencv python3-pytest
+  python3-dev python3-venv pybind11-dev python3-numpy python3-opencv python3-pytest python3-pil
   python3-distributed python3-dask  # python -m hnnstereo.batch and its test (pip .[batch] elsewhere)
   chromium)  # chromium: only the web page's browser test (tests/web/cell_page_cli_test.cc)
 
