@@ -28,12 +28,13 @@ import numpy as np
 from PIL import Image
 
 # The fitted default (CensusConfidenceOptions, which weighs the potential margin, the surface
-# residual and the neighbour counts at 12 and 24 px 0); --features picks another set, from these
-# and "potential_margin", "surface_residual", "neighbours_12", "neighbours_24",
+# residual, the agreement at 3 and 6 px and the neighbour counts at 12 and 24 px 0); --features
+# picks another set, from these and "agreement_3", "agreement_6", "potential_margin",
+# "surface_residual", "neighbours_12", "neighbours_24",
 # "relneighbours_R", "relcorrelation", "log_correlation_margin" (docs/accuracy.md).
 RADII = (3, 6, 12, 24)
-FEATURES = (["correlation", "correlation_margin"] +
-            [f"agreement_{r}" for r in RADII] + ["neighbours_3", "neighbours_6"])
+FEATURES = ["correlation", "correlation_margin", "agreement_12", "agreement_24", "neighbours_3",
+            "neighbours_6"]
 
 
 def feature_columns(rows, col, names):
@@ -253,13 +254,14 @@ def main():
           f"{top_error(b, y, 0.25):.1f} |")
     if checked:
         print("\n| check pair (fitted on every tuning pair) | matches | error all % | top 25 % | "
-              "top 50 % | top 75 % | top 25 % (current build) |")
-        print("|---|---:|---:|---:|---:|---:|---:|")
+              "top 50 % | top 75 % | current build: top 25 % | 50 % | 75 % |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
         for name, (X_check, y_check, built_check) in checked.items():
             c_check = sigmoid(design(X_check, args.cap) @ w)
             print(f"| {name} | {len(y_check)} | {100 * (1 - y_check.mean()):.1f} | "
                   f"{top_error(c_check, y_check, 0.25):.1f} | {top_error(c_check, y_check, 0.5):.1f} | "
-                  f"{top_error(c_check, y_check, 0.75):.1f} | {top_error(built_check, y_check, 0.25):.1f} |")
+                  f"{top_error(c_check, y_check, 0.75):.1f} | " +
+                  " | ".join(f"{top_error(built_check, y_check, s):.1f}" for s in (0.25, 0.5, 0.75)) + " |")
     # What a value of the built confidence means (the reports' own column, pooled): what
     # --min-confidence T keeps and how often the kept matches are wrong.
     print("\n| --min-confidence (current build) | matches kept % | error of kept % |")
