@@ -16,8 +16,9 @@ Writes OUT/tune and OUT/check, every pair in the Middlebury 2014 layout that `ev
   surfaces whose only inner edges are faint printed marks, slanted background), `repeated`
   (stripes and grids of 6-16 px period along the epipolar lines on a textured background: the
   repeated facade) and `outdoor` (a ground plane receding to a
-  horizon, a plain sky, facades with window grids, cameras of different exposure). Surfaces are
-  planes d = a x + b y + c in the left image; each view is rendered with 2 x 2 samples per pixel,
+  horizon, a plain sky, facades with window grids, cameras of different exposure), drawn in a
+  640 x 480 frame and rendered at --render-scale times it. Surfaces are planes d = a x + b y + c
+  in the left image; each view is rendered with 2 x 2 samples per pixel,
   the nearer surface (larger disparity) wins, and a left pixel is non-occluded when the right
   view sees the same surface at x - d.
 
@@ -40,7 +41,8 @@ import confident_errors  # noqa: E402
 import fit_confidence  # noqa: E402
 from half_size_pairs import write_pfm  # noqa: E402
 
-WIDTH, HEIGHT = 640, 480
+WIDTH, HEIGHT = 640, 480  # the frame scenes are drawn in (design pixels)
+SCALE = 1.0  # rendered images are SCALE times the frame (--render-scale)
 TEXTURE_SCALE = 4  # texture maps hold 4 x 4 texels per left-image pixel
 
 
@@ -161,13 +163,21 @@ def visible_surface(surfaces, x, y, right_view):
     return best, best_x, best_d
 
 
-def render_view(surfaces, right_view, samples=2):
-    total = np.zeros((HEIGHT, WIDTH), np.float32)
+def design_grid(scale, ox=0.0, oy=0.0):
+    """Design coordinates (the 640 x 480 frame the scenes are drawn in) of the pixels of an image
+    `scale` times its size, each moved by (ox, oy) of its own pixels."""
+    rows, cols = int(round(HEIGHT * scale)), int(round(WIDTH * scale))
+    y, x = np.mgrid[0:rows, 0:cols].astype(np.float32)
+    return (x + ox + 0.5) / scale - 0.5, (y + oy + 0.5) / scale - 0.5
+
+
+def render_view(surfaces, right_view, scale, samples=2):
     offsets = (np.arange(samples) + 0.5) / samples - 0.5
+    total = None
     for oy in offsets:
         for ox in offsets:
-            y, x = np.mgrid[0:HEIGHT, 0:WIDTH].astype(np.float32)
-            x, y = x + ox, y + oy
+            x, y = design_grid(scale, ox, oy)
+            total = np.zeros(x.shape, np.float32) if total is None else total
             index, xl, _ = visible_surface(surfaces, x, y, right_view)
             for k, surface in enumerate(surfaces):
                 seen = index == k
@@ -176,15 +186,21 @@ def render_view(surfaces, right_view, samples=2):
     return total / samples ** 2
 
 
-def render_pair(surfaces, rng, right_gain=1.0, noise_sigma=2.0):
-    left = render_view(surfaces, False)
-    right = render_view(surfaces, True) * right_gain
-    y, x = np.mgrid[0:HEIGHT, 0:WIDTH].astype(np.float32)
-    index, _, truth = visible_surface(surfaces, x, y, False)
-    xr = np.round(x - truth).astype(int)
-    inside = (xr >= 0) & (xr < WIDTH)
-    right_index, _, _ = visible_surface(surfaces, x - truth, y, True)
-    visible = inside & (right_index == index)
+def render_pair(surfaces, rng, right_gain=1.0, noise_sigma=2.0, scale=None):
+    """Left and right images, the left ground truth (NaN unknown) and the non-occluded mask, at
+    `scale` (default SCALE) times 640 x 480: a camera-sized image of the same scene, disparities
+    scaled with it."""
+    scale = SCALE if scale is None else scale
+    left = render_view(surfaces, False, scale)
+    right = render_view(surfaces, True, scale) * right_gain
+    x, y = design_grid(scale)
+    index, _, design_truth = visible_surface(surfaces, x, y, False)
+    # The right view's pixel x - d (d in design units) must see the same surface.
+    right_index, _, _ = visible_surface(surfaces, x - design_truth, y, True)
+    truth = design_truth * scale
+    columns = np.arange(x.shape[1])[None, :]
+    xr = np.round(columns - truth).astype(int)
+    visible = (xr >= 0) & (xr < x.shape[1]) & (right_index == index)
     truth = np.where(truth > 0, truth, np.nan)
 
     def camera(image):
@@ -286,7 +302,14 @@ def main():
     parser.add_argument("--scenes", type=int, default=2,
                         help="rendered scenes of each kind in each part (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=42, help="seed of every draw (default: %(default)s)")
+    parser.add_argument("--render-scale", type=float, default=1.0,
+                        help="rendered scenes at this many times 640 x 480, the same scenes "
+                             "(2.25: 1440 x 1080, 1.6 megapixels; default: %(default)s)")
     args = parser.parse_args()
+    global SCALE
+    SCALE = args.render_scale
+    if not 0.25 <= SCALE <= 4.0:
+        parser.error("--render-scale must lie in 0.25 .. 4")
 
     variants = [] if args.variants == "none" else args.variants.split(",")
     unknown = [v for v in variants if v not in VARIANTS]

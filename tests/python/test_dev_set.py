@@ -96,3 +96,16 @@ def test_writes_the_layout_eval_reads(tmp_path):
     # The matcher agrees with the rendered truth: the truth is the images' geometry.
     hnn = next(m for m in pair["methods"] if m["method"] == "hnn-default")
     assert hnn["precision_1px"] > 0.8 and hnn["density"] > 0.6, hnn
+
+
+def test_render_scale_draws_the_same_scene_camera_sized(monkeypatch):
+    small = dev_set.SCENES["repeated"](np.random.default_rng(11))
+    monkeypatch.setattr(dev_set, "SCALE", 1.5)
+    left, right, truth, visible = dev_set.SCENES["repeated"](np.random.default_rng(11))
+    assert left.shape == (720, 960) and truth.shape == (720, 960)
+    # The same surfaces: disparities 1.5 times as large, sampled at the same scene points.
+    assert np.nanmax(truth) == pytest.approx(1.5 * np.nanmax(small[2]), rel=0.01)
+    assert np.nanmedian(truth[1::3, 1::3][:480, :640]) == pytest.approx(
+        1.5 * np.nanmedian(small[2]), rel=0.05)
+    assert warp_residual(left, right, truth, visible) < 0.6 * warp_residual(
+        left, right, truth, visible, shift=2.5)
