@@ -45,20 +45,51 @@ TEST(CameraLens, DistortIsOpenCvsProjectPoints) {
 }
 
 TEST(CameraLens, CheckRefusesModelsItCannotEvaluate) {
-  EXPECT_NE(CameraLens{RenderK(), {-0.2, 0.1, 0.0}}.Check(), "");
-  EXPECT_NE(CameraLens{RenderK(), std::vector<double>(14, 0.0)}.Check(), "");
+  const CameraLens three{RenderK(), {-0.2, 0.1, 0.0}};
+  const CameraLens fourteen{RenderK(), std::vector<double>(14, 0.0)};
+  EXPECT_NE(three.Check(), "");
+  EXPECT_NE(fourteen.Check(), "");
 }
 
 // The gradient per undistorted pixel is the chain rule: a captured ramp I = a . x_captured seen
-// at an undistorted pixel has gradient J^T a.
-TEST(CameraLens, GradientAtIsPerUndistortedPixel) {
+// from an undistorted pixel has gradient J^T a, J = d Distort / d undistorted.
+TEST(GradientsPerUndistortedPixel, IsTheChainRule) {
   const CameraLens lens{RenderK(), kDistortion};
-  cv::Mat gx(480, 640, CV_32F, cv::Scalar(3.0f)), gy(480, 640, CV_32F, cv::Scalar(-2.0f));
-  const Eigen::Vector2d at(600.0, 60.0);
-  const Eigen::Vector2d expected = lens.Jacobian(at).transpose() * Eigen::Vector2d(3.0, -2.0);
-  EXPECT_LT((lens.GradientAt(gx, gy, at) - expected).norm(), 1e-6);
-  EXPECT_GT((expected - Eigen::Vector2d(3.0, -2.0)).norm(), 0.05);  // the lens matters there
-  EXPECT_EQ(lens.GradientAt(gx, gy, Eigen::Vector2d(-400.0, 60.0)), Eigen::Vector2d::Zero());
+  const cv::Mat gx(480, 640, CV_32F, cv::Scalar(3.0f)), gy(480, 640, CV_32F, cv::Scalar(-2.0f));
+  cv::Mat ux, uy;
+  GradientsPerUndistortedPixel(gx, gy, lens, &ux, &uy);
+  for (const Eigen::Vector2d& at : {Eigen::Vector2d(600, 60), Eigen::Vector2d(320, 240),
+                                    Eigen::Vector2d(20, 460)}) {
+    Eigen::Matrix2d J;
+    for (int axis = 0; axis < 2; ++axis) {
+      const Eigen::Vector2d step = Eigen::Vector2d::Unit(axis);
+      J.col(axis) = 0.5 * (lens.Distort(at + step) - lens.Distort(at - step));
+    }
+    const Eigen::Vector2d expected = J.transpose() * Eigen::Vector2d(3.0, -2.0);
+    const int u = static_cast<int>(at.x()), v = static_cast<int>(at.y());
+    EXPECT_NEAR(ux.at<float>(v, u), expected.x(), 1e-3) << at.transpose();
+    EXPECT_NEAR(uy.at<float>(v, u), expected.y(), 1e-3) << at.transpose();
+  }
+  // The lens matters at the corner: a tenth of the gradient or more.
+  EXPECT_GT(std::abs(ux.at<float>(60, 600) - 3.0f), 0.05f);
+}
+
+// In place (outputs = inputs, as sensing calls it): each pixel looks up the captured gradient,
+// not one already overwritten. A ramp gx = u, gy = v under a near-identity lens stays the ramp.
+TEST(GradientsPerUndistortedPixel, InPlaceReadsTheCapturedGradient) {
+  const CameraLens lens{RenderK(), {-0.004, 0.012, 0.0006, -0.0002, 0.0}};
+  cv::Mat gx(480, 640, CV_32F), gy(480, 640, CV_32F);
+  for (int v = 0; v < gx.rows; ++v) {
+    for (int u = 0; u < gx.cols; ++u) {
+      gx.at<float>(v, u) = static_cast<float>(u);
+      gy.at<float>(v, u) = static_cast<float>(v);
+    }
+  }
+  GradientsPerUndistortedPixel(gx, gy, lens, &gx, &gy);
+  for (const cv::Point& at : {cv::Point(10, 10), cv::Point(320, 240), cv::Point(600, 400)}) {
+    EXPECT_NEAR(gx.at<float>(at), static_cast<float>(at.x), 1.5f) << at;
+    EXPECT_NEAR(gy.at<float>(at), static_cast<float>(at.y), 1.5f) << at;
+  }
 }
 
 // Windows through the lens are the captured image's windows at the captured pixels.

@@ -345,20 +345,20 @@ std::string PositionSensingOptions::Check() const {
 namespace {
 
 // The left image's 3 x 3 Sobel gradients, taken once, when the first stage needs them (the
-// edge-angle test, the island joins' image veto, the image fit). `lens`: the point route's
-// lenses (the matches and P in undistorted pixels, `grey` as captured); null otherwise.
+// edge-angle test, the island joins' image veto, the image fit), in the pixels P1 projects to:
+// through the point route's `lens` (`grey` as captured, P1 in undistorted pixels) they are the
+// captured image's, looked up per undistorted pixel (GradientsPerUndistortedPixel); null: the
+// image's own.
 struct LeftGradients {
   const cv::Mat& grey;
   const StereoLens* lens;
   cv::Mat x, y;
 
-  const CameraLens* left_lens() const { return lens ? &lens->left : nullptr; }
-
   void Need() {
-    if (x.empty()) {
-      cv::Sobel(grey, x, CV_32F, 1, 0, 3);
-      cv::Sobel(grey, y, CV_32F, 0, 1, 3);
-    }
+    if (!x.empty()) return;
+    cv::Sobel(grey, x, CV_32F, 1, 0, 3);
+    cv::Sobel(grey, y, CV_32F, 0, 1, 3);
+    if (lens != nullptr) GradientsPerUndistortedPixel(x, y, lens->left, &x, &y);
   }
 };
 
@@ -368,8 +368,10 @@ struct LeftGradients {
 // along the edge (PositionSensingOptions::min_edge_epipolar_angle_deg).
 bool EdgeAlongEpipolar(const StereoMatch& stereo_match, const LeftGradients& gradients,
                        const Eigen::Matrix3d& F, double min_sine) {
-  const Eigen::Vector2d gradient = GradientAtPixel(
-      gradients.x, gradients.y, stereo_match.left.cast<double>(), gradients.left_lens());
+  const cv::Mat& grey = gradients.grey;
+  const int u = std::clamp(static_cast<int>(std::lround(stereo_match.left.x())), 0, grey.cols - 1);
+  const int v = std::clamp(static_cast<int>(std::lround(stereo_match.left.y())), 0, grey.rows - 1);
+  const Eigen::Vector2d gradient(gradients.x.at<float>(v, u), gradients.y.at<float>(v, u));
   const Eigen::Vector3d line = F.transpose() * stereo_match.right.cast<double>().homogeneous();
   const Eigen::Vector2d direction = Eigen::Vector2d(line.y(), -line.x()).normalized();
   return gradient.norm() > 0.0 && direction.allFinite() &&
@@ -460,8 +462,7 @@ struct IslandsSeenApart {
     }
     if (!look) return false;
     const std::optional<GapBetweenPieces> gap =
-        LookAcrossGap(a, b, height, P1, gradients.x, gradients.y, options.top_edges,
-                      gradients.left_lens());
+        LookAcrossGap(a, b, height, P1, gradients.x, gradients.y, options.top_edges);
     return gap && gap->sides_support < options.top_edges.min_side_support &&
            gap->ends_support >= options.top_edges.min_end_support;
   }
@@ -632,12 +633,11 @@ void FitTopsToImageEdges(const calib::StereoCalibration& calibration,
         &report->objects[a],
         {calibration.P1, gradients.x, gradients.y, others, report->points_in_world, report->weak,
          camera_centres, pose_options.top_layer_mm, max_length,
-         pose_options.centroid_from_rectangle, gradients.left_lens()},
+         pose_options.centroid_from_rectangle},
         options.top_edges);
     report->objects[a].image_edge_moved_mm = extension.moved_mm();
     TurnTopToImageEdges(&report->objects[a], calibration.P1, gradients.x, gradients.y,
-                        pose_options.yaw_method == YawMethod::kMinAreaRectangle, options.top_edges,
-                        gradients.left_lens());
+                        pose_options.yaw_method == YawMethod::kMinAreaRectangle, options.top_edges);
     report->objects[a].unplaced_sides = extension.unplaced_sides;
     if (options.flag_unplaced_sides && extension.unplaced_sides > 0 && !report->objects[a].merged) {
       report->objects[a].merged = true;

@@ -49,11 +49,9 @@ Frame Extended(Frame f, int k, double e) {
 
 class EdgeProbe {
  public:
-  // `lens`: P projects to undistorted pixels of an image captured through it (gx, gy are the
-  // captured image's); null when P projects to the image's own pixels.
   EdgeProbe(const Eigen::Matrix<double, 3, 4>& P, const cv::Mat& gx, const cv::Mat& gy,
-            double height, double min_gradient, const CameraLens* lens)
-      : P_(P), gx_(gx), gy_(gy), height_(height), min_gradient_(min_gradient), lens_(lens) {}
+            double height, double min_gradient)
+      : P_(P), gx_(gx), gy_(gy), height_(height), min_gradient_(min_gradient) {}
 
   bool Project(const Eigen::Vector2d& xy, Eigen::Vector2d* uv) const {
     const Eigen::Vector3d x = P_ * Eigen::Vector4d(xy.x(), xy.y(), height_, 1.0);
@@ -146,7 +144,10 @@ class EdgeProbe {
     const Eigen::Vector2d t = (ub - ua).normalized();
     const Eigen::Vector2d normal(-t.y(), t.x());
     const auto signed_across = [&](const Eigen::Vector2d& uv) {
-      return GradientAtPixel(gx_, gy_, uv, lens_).dot(normal);
+      const int u = static_cast<int>(std::lround(uv.x()));
+      const int v = static_cast<int>(std::lround(uv.y()));
+      if (u < 0 || v < 0 || u >= gx_.cols || v >= gx_.rows) return 0.0;
+      return static_cast<double>(gx_.at<float>(v, u) * normal.x() + gy_.at<float>(v, u) * normal.y());
     };
     const auto across = [&](const Eigen::Vector2d& uv) { return std::abs(signed_across(uv)); };
     std::vector<Across> samples(static_cast<std::size_t>(n));
@@ -170,7 +171,6 @@ class EdgeProbe {
   const cv::Mat& gy_;
   double height_;
   double min_gradient_;
-  const CameraLens* lens_;
 };
 
 // Side k of frame f without the corner margins, as a segment a-b; false when nothing is left.
@@ -395,8 +395,7 @@ class TopFit {
       : pose_(pose),
         in_(in),
         options_(options),
-        probe_(in.P, in.gradient_x, in.gradient_y, pose.height_mm, options.min_edge_gradient,
-               in.lens),
+        probe_(in.P, in.gradient_x, in.gradient_y, pose.height_mm, options.min_edge_gradient),
         f_(FrameOf(pose.top_rectangle)),
         step_(options.step_mm),
         camera_(in.camera_centres.at(0)) {}
@@ -717,10 +716,9 @@ TopFaceEdgeReport ExtendTopToImageEdges(ObjectPose* pose, const TopFaceEdgeInput
 
 double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
                            const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options,
-                           const CameraLens* lens) {
+                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options) {
   if (pose->round || gradient_x.empty() || !(options.max_yaw_turn_deg > 0.0)) return 0.0;
-  const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient, lens);
+  const EdgeProbe probe(P, gradient_x, gradient_y, pose->height_mm, options.min_edge_gradient);
   // The gradient along the outline: each side's mean gradient on its line (at its best offset
   // within kSlackMm, so that a side the points placed a little off still counts), weighted by
   // the side's length.
@@ -877,8 +875,7 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
                                               const std::vector<Eigen::Vector2d>& piece_b,
                                               double height_mm, const Eigen::Matrix<double, 3, 4>& P,
                                               const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                              const TopFaceEdgeOptions& options,
-                                              const CameraLens* lens) {
+                                              const TopFaceEdgeOptions& options) {
   if (piece_a.empty() || piece_b.empty() || gradient_x.empty()) return std::nullopt;
   std::vector<Eigen::Vector2d> joint = piece_a;
   joint.insert(joint.end(), piece_b.begin(), piece_b.end());
@@ -888,7 +885,7 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
   if (along < 0 || far - near - 2.0 * options.corner_margin_mm < 2.0 * options.step_mm) {
     return std::nullopt;
   }
-  const EdgeProbe probe(P, gradient_x, gradient_y, height_mm, options.min_edge_gradient, lens);
+  const EdgeProbe probe(P, gradient_x, gradient_y, height_mm, options.min_edge_gradient);
   GapBetweenPieces gap;
   gap.sides_support = SidesAcrossGapSupport(probe, f, along, near, far, options);
   // The facing ends, both faces brighter than the gap (or both darker).

@@ -18,7 +18,6 @@
 #include <vector>
 
 #include "vision/sensing/object_pose.h"
-#include "vision/stereo/lens_distortion.h"
 
 namespace hnnstereo::vision {
 
@@ -120,11 +119,9 @@ struct TopFaceEdgeReport {
 /// by min_yaw_turn_gain. The points' minimum-area rectangle takes its yaw from the outline
 /// points, which scatter and stop short where the edges run along the epipolar lines. Updates
 /// the rectangle's yaw and, when `yaw_from_rectangle`, the pose's; returns the turn (degrees).
-/// `lens`: as TopFaceEdgeInputs::lens.
 double TurnTopToImageEdges(ObjectPose* pose, const Eigen::Matrix<double, 3, 4>& P,
                            const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options = {},
-                           const CameraLens* lens = nullptr);
+                           bool yaw_from_rectangle, const TopFaceEdgeOptions& options = {});
 
 /// What ExtendTopToImageEdges reads besides the pose: one image, the other parts' tops and the
 /// triangulated points (for the occlusion test), and the limits of the top.
@@ -144,11 +141,6 @@ struct TopFaceEdgeInputs {
   double top_layer_mm;  ///< ObjectPoseOptions::top_layer_mm: points this near the top are on it
   double max_length_mm;  ///< no top grows longer than this (mm; the longest part)
   bool centroid_from_rectangle;  ///< move the pose's centroid x, y with the rectangle
-  /// The lens the image was captured through when P projects to undistorted pixels and the
-  /// gradients are the captured image's (LensRoute::kPoints): each sample is read at its
-  /// captured pixel, the gradient per undistorted pixel (CameraLens::GradientAt). Null: P
-  /// projects to the gradients' own pixels.
-  const CameraLens* lens = nullptr;
 };
 
 /// Moves the sides of `pose`'s top rectangle (not round poses) in or out to the face's edges in
@@ -187,7 +179,6 @@ std::optional<GapBetweenPieces> LookAcrossGap(const std::vector<Eigen::Vector2d>
                                               const std::vector<Eigen::Vector2d>& piece_b,
                                               double height_mm, const Eigen::Matrix<double, 3, 4>& P,
                                               const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                              const TopFaceEdgeOptions& options = {},
-                                              const CameraLens* lens = nullptr);
+                                              const TopFaceEdgeOptions& options = {});
 
 }  // namespace hnnstereo::vision

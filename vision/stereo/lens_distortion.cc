@@ -99,31 +99,38 @@ Eigen::Vector2d CameraLens::Distort(const Eigen::Vector2d& undistorted_px) const
   return {K(0, 0) * xd + K(0, 1) * yd + K(0, 2), K(1, 1) * yd + K(1, 2)};
 }
 
-Eigen::Matrix2d CameraLens::Jacobian(const Eigen::Vector2d& undistorted_px) const {
-  constexpr double kHalfStep = 0.25;
-  Eigen::Matrix2d J;
-  for (int axis = 0; axis < 2; ++axis) {
-    const Eigen::Vector2d step = kHalfStep * Eigen::Vector2d::Unit(axis);
-    J.col(axis) = (Distort(undistorted_px + step) - Distort(undistorted_px - step)) / (2 * kHalfStep);
-  }
-  return J;
-}
-
-Eigen::Vector2d CameraLens::GradientAt(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                       const Eigen::Vector2d& undistorted_px) const {
-  const Eigen::Vector2d captured = GradientAtPixel(gradient_x, gradient_y, Distort(undistorted_px),
-                                                   nullptr);
-  return Jacobian(undistorted_px).transpose() * captured;
-}
-
-Eigen::Vector2d GradientAtPixel(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                const Eigen::Vector2d& px, const CameraLens* lens) {
-  if (lens != nullptr) return lens->GradientAt(gradient_x, gradient_y, px);
-  if (!px.allFinite()) return Eigen::Vector2d::Zero();
-  const long u = std::lround(px.x()), v = std::lround(px.y());
-  if (u < 0 || v < 0 || u >= gradient_x.cols || v >= gradient_x.rows) return Eigen::Vector2d::Zero();
-  const int iu = static_cast<int>(u), iv = static_cast<int>(v);
-  return {gradient_x.at<float>(iv, iu), gradient_y.at<float>(iv, iu)};
+void GradientsPerUndistortedPixel(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                  const CameraLens& lens, cv::Mat* undistorted_x,
+                                  cv::Mat* undistorted_y) {
+  const cv::Size size = gradient_x.size();
+  cv::Mat map_x, map_y;  // the captured pixel of each undistorted pixel
+  cv::initUndistortRectifyMap(CameraMatrix(lens.K), cv::Mat(lens.D, true), cv::noArray(),
+                              CameraMatrix(lens.K), size, CV_32FC1, map_x, map_y);
+  // New buffers: the outputs may be the inputs.
+  cv::Mat out_x(size, CV_32F, cv::Scalar(0)), out_y(size, CV_32F, cv::Scalar(0));
+  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& rows) {
+    for (int v = rows.start; v < rows.end; ++v) {
+      const int v0 = std::max(v - 1, 0), v1 = std::min(v + 1, size.height - 1);
+      for (int u = 0; u < size.width; ++u) {
+        const long cu = std::lround(map_x.at<float>(v, u)), cv = std::lround(map_y.at<float>(v, u));
+        if (cu < 0 || cv < 0 || cu >= size.width || cv >= size.height) continue;
+        const float gx = gradient_x.at<float>(static_cast<int>(cv), static_cast<int>(cu));
+        const float gy = gradient_y.at<float>(static_cast<int>(cv), static_cast<int>(cu));
+        const int u0 = std::max(u - 1, 0), u1 = std::min(u + 1, size.width - 1);
+        // Columns of J: the captured pixel's change per undistorted pixel in u, then in v.
+        const float du = static_cast<float>(std::max(u1 - u0, 1));
+        const float dv = static_cast<float>(std::max(v1 - v0, 1));
+        const float j00 = (map_x.at<float>(v, u1) - map_x.at<float>(v, u0)) / du;
+        const float j10 = (map_y.at<float>(v, u1) - map_y.at<float>(v, u0)) / du;
+        const float j01 = (map_x.at<float>(v1, u) - map_x.at<float>(v0, u)) / dv;
+        const float j11 = (map_y.at<float>(v1, u) - map_y.at<float>(v0, u)) / dv;
+        out_x.at<float>(v, u) = j00 * gx + j10 * gy;
+        out_y.at<float>(v, u) = j01 * gx + j11 * gy;
+      }
+    }
+  });
+  *undistorted_x = out_x;
+  *undistorted_y = out_y;
 }
 
 std::string_view LensRouteName(LensRoute route) {

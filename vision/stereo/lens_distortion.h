@@ -44,19 +44,18 @@ struct CameraLens {
   std::string Check() const;
   /// The captured pixel of an undistorted pixel (OpenCV's projectPoints model).
   Eigen::Vector2d Distort(const Eigen::Vector2d& undistorted_px) const;
-  /// d Distort / d undistorted_px (central differences over 0.5 px).
-  Eigen::Matrix2d Jacobian(const Eigen::Vector2d& undistorted_px) const;
-  /// The captured image's gradient (`gradient_x`, `gradient_y`, CV_32F, e.g. 3 x 3 Sobel) at the
-  /// captured pixel nearest Distort(undistorted_px), per undistorted pixel: J^T g (chain rule),
-  /// so that it can be dotted with directions taken in undistorted pixels. Zero outside.
-  Eigen::Vector2d GradientAt(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                             const Eigen::Vector2d& undistorted_px) const;
 };
 
-/// The image gradient at the pixel nearest `px`, per pixel of `px`'s frame: the pixel's own
-/// gradient without a lens, CameraLens::GradientAt through one. Zero outside the image.
-Eigen::Vector2d GradientAtPixel(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
-                                const Eigen::Vector2d& px, const CameraLens* lens);
+/// The captured image's gradient (`gradient_x`, `gradient_y`, CV_32F, e.g. 3 x 3 Sobel) per
+/// pixel of the undistorted frame of the same size (camera matrix K): at each pixel, the
+/// gradient at the captured pixel nearest its ray (cv::initUndistortRectifyMap), times J^T,
+/// J = d captured / d undistorted from the map's central differences (chain rule), so that it
+/// dots with directions taken in undistorted pixels. A lookup table, not a resampling: no
+/// gradient is interpolated. Zero where the captured pixel lies outside the image. The outputs
+/// may be the inputs.
+void GradientsPerUndistortedPixel(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                  const CameraLens& lens, cv::Mat* undistorted_x,
+                                  cv::Mat* undistorted_y);
 
 /// Both cameras' lenses (left, right), from a calibration's K1 D1, K2 D2.
 struct StereoLens {
