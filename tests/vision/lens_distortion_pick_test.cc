@@ -1,11 +1,12 @@
 // Picking through lens distortion, end to end: the cell rendered with Brown-Conrady distortion
 // (render --distortion), calibrated from its own board images (calib/board_calibration.h: K D,
-// R T, the table frame), sensed as `pick` senses (images undistorted with D, P for undistorted
-// pixels), scored against the truth - and the same images calibrated with the DLT of the circle
-// plate, which has no distortion model. The default run checks one scene;
-// HNNSTEREO_LENS_ACCEPTANCE=N runs N scenes from HNNSTEREO_LENS_FIRST_SEED (default 300) and
-// prints the figures of docs/sensing.md against the same seeds rendered without distortion (and
-// the distorted scenes sensed with the render's own K D R T: what the calibration adds).
+// R T, the table frame), sensed as `pick` senses (through the lens by
+// PositionSensingOptions::lens_route, P for undistorted pixels), scored against the truth - and
+// the same images calibrated with the DLT of the circle plate, which has no distortion model.
+// The default run checks one scene; HNNSTEREO_LENS_ACCEPTANCE=N runs N scenes from
+// HNNSTEREO_LENS_FIRST_SEED (default 300) and prints the figures of docs/sensing.md against the
+// same seeds rendered without distortion (the board-calibrated scenes by both lens routes, and
+// sensed with the render's own K D R T: what the calibration adds).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -57,7 +58,8 @@ CalibratedScene RenderAndCalibrate(std::uint64_t seed, const std::vector<double>
 }
 
 // What `pick` does with a calibration (app/cell_sensing.cc): senses the captured images, through
-// the lens by `route` when D is present. `match_ms` (when not null) adds the match time.
+// the lens by `route` when D is present. `match_ms` (when not null) adds the match and
+// refinement time (the image route's undistortion included).
 TruthComparison SenseAndScore(const RenderedScene& scene, const calib::StereoCalibration& calibration,
                               LensRoute route = PositionSensingOptions().lens_route,
                               double* match_ms = nullptr) {
@@ -111,8 +113,8 @@ TEST(LensDistortionPick, BoardCalibrationUndoesTheLensAndTheDltDoesNot) {
   EXPECT_EQ(board.detected, board.true_parts);
   EXPECT_EQ(board.false_objects, 0);
   EXPECT_LE(board.Percentile(1.0), 0.5);
-  // The model matters: without it the centroids are several times further off.
-  EXPECT_GE(dlt.Percentile(1.0), 3.0 * board.Percentile(1.0));
+  // The model matters: without it the centroids are further off, by the acceptance's factor.
+  EXPECT_GE(dlt.Percentile(1.0), 2.0 * board.Percentile(1.0));
   EXPECT_GE(dlt.Percentile(1.0), 0.5);
 }
 
