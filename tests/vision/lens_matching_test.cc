@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cstdint>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
@@ -27,6 +28,14 @@ Eigen::Matrix3d RenderK() {
   Eigen::Matrix3d K;
   K << 1100, 0, 319.5, 0, 1100, 239.5, 0, 0, 1;
   return K;
+}
+
+// Scene `seed` of the cell through kDistortion (both cameras; scene.cameras carries K D R T).
+RenderedScene RenderDistorted(std::uint64_t seed) {
+  SceneRenderOptions options;
+  options.seed = seed;
+  options.cameras.distortion = kDistortion;
+  return RenderScene(options);
 }
 
 TEST(CameraLens, DistortIsOpenCvsProjectPoints) {
@@ -94,10 +103,7 @@ TEST(GradientsPerUndistortedPixel, InPlaceReadsTheCapturedGradient) {
 
 // Windows through the lens are the captured image's windows at the captured pixels.
 TEST(ZnccMatcher, ThroughALensReadsTheCapturedPixels) {
-  SceneRenderOptions options;
-  options.seed = 5;
-  options.cameras.distortion = kDistortion;
-  const RenderedScene scene = RenderScene(options);
+  const RenderedScene scene = RenderDistorted(5);
   const auto lens = LensOf(scene.cameras);
   ASSERT_TRUE(lens);
   DataTermOptions through;
@@ -117,10 +123,7 @@ TEST(ZnccMatcher, ThroughALensReadsTheCapturedPixels) {
 // The features the point route matches (found on the captured images, undistorted as points)
 // lie where the image route finds them on the undistorted images.
 TEST(MatcherThroughLens, UndistortedFeaturesAgreeWithTheImageRoutes) {
-  SceneRenderOptions options;
-  options.seed = 7;
-  options.cameras.distortion = kDistortion;
-  const RenderedScene scene = RenderScene(options);
+  const RenderedScene scene = RenderDistorted(7);
   const auto lens = LensOf(scene.cameras);
   ASSERT_TRUE(lens);
   MatcherOptions matcher = PickCellMatcherOptions();
@@ -158,10 +161,7 @@ TEST(MatcherThroughLens, UndistortedFeaturesAgreeWithTheImageRoutes) {
 // A distorted cell with its true K D R T: each route finds every part, no false one, every
 // centroid within 0.5 mm of the truth (the bound LensDistortionPick holds the board route to).
 TEST(PositionSensing, PointRouteSensesADistortedCellAsTheImageRouteDoes) {
-  SceneRenderOptions options;
-  options.seed = 7;
-  options.cameras.distortion = kDistortion;
-  const RenderedScene scene = RenderScene(options);
+  const RenderedScene scene = RenderDistorted(7);
   for (LensRoute route : {LensRoute::kPoints, LensRoute::kImages}) {
     PositionSensingOptions sensing;
     sensing.matcher.engine = hnn::EngineKind::kCpu;
