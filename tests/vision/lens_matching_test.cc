@@ -158,6 +158,34 @@ TEST(MatcherThroughLens, UndistortedFeaturesAgreeWithTheImageRoutes) {
   EXPECT_THROW(through.features.map_points(other, &right_points), std::logic_error);
 }
 
+// MATCHES.csv's pixels: the point route's matches, mapped back, lie on the captured left image's
+// edges (where its features were found) and undistort to the matched points again.
+TEST(MatchesToCapturedPixels, PutsTheMatchesOnTheCapturedImagesFeatures) {
+  const RenderedScene scene = RenderDistorted(7);
+  const auto lens = LensOf(scene.cameras);
+  ASSERT_TRUE(lens);
+  MatcherOptions matcher = PickCellMatcherOptions();
+  matcher.engine = hnn::EngineKind::kCpu;
+  MatchReport report = MatchStereo(scene.left, scene.right, &scene.cameras,
+                                   MatcherThroughLens(matcher, scene.left, scene.right, lens),
+                                   nullptr);
+  ASSERT_GT(report.matches.size(), 500u);
+  const std::vector<StereoMatch> undistorted = report.matches;
+  MatchesToCapturedPixels(*lens, &report);
+  cv::Mat edges;
+  cv::Canny(scene.left, edges, matcher.features.canny_low, matcher.features.canny_high);
+  std::size_t on_edge = 0;
+  for (std::size_t m = 0; m < report.matches.size(); ++m) {
+    const Eigen::Vector2f& left = report.matches[m].left;
+    const int u = static_cast<int>(std::lround(left.x())), v = static_cast<int>(std::lround(left.y()));
+    ASSERT_TRUE(u >= 0 && v >= 0 && u < edges.cols && v < edges.rows) << left.transpose();
+    on_edge += edges.at<uchar>(v, u) ? 1 : 0;
+    const Eigen::Vector2f back = UndistortPoints({left}, lens->left.K, lens->left.D)[0];
+    EXPECT_LT((back - undistorted[m].left).norm(), 0.05f) << m;
+  }
+  EXPECT_GT(static_cast<double>(on_edge), 0.95 * static_cast<double>(report.matches.size()));
+}
+
 // A distorted cell with its true K D R T: each route finds every part, no false one, every
 // centroid within 0.5 mm of the truth (the bound LensDistortionPick holds the board route to).
 TEST(PositionSensing, PointRouteSensesADistortedCellAsTheImageRouteDoes) {
