@@ -8,7 +8,6 @@
 #include "api/matcher_settings.h"
 #include "calib/calibration.h"
 #include "common/image.h"
-#include "vision/stereo/lens_distortion.h"
 #include "vision/sensing/position_sensing.h"
 
 #ifndef HNNSTEREO_VERSION
@@ -183,14 +182,9 @@ SensingResult SensePositions(const cv::Mat& left, const cv::Mat& right, const Ca
   SensingResult result;
   std::unique_ptr<ocl::Runtime> runtime =
       api::OpenRuntime(options.matcher.engine, settings.device, &result.notice);
-  // A chessboard calibration refers P to undistorted pixels: sense on undistorted images.
-  cv::Mat left_used = left_grey, right_used = right_grey;
-  if (cal.intrinsics && !cal.intrinsics->D1.empty()) {
-    left_used = vision::UndistortImage(left_grey, cal.intrinsics->K1, cal.intrinsics->D1);
-    right_used = vision::UndistortImage(right_grey, cal.intrinsics->K2, cal.intrinsics->D2);
-  }
+  // A board calibration refers P to undistorted pixels: SensePositions senses through the lens.
   const vision::PositionSensingReport report =
-      vision::SensePositions(left_used, right_used, cal, options, runtime.get());
+      vision::SensePositions(left_grey, right_grey, cal, options, runtime.get());
   if (result.notice.empty()) result.notice = report.match.engine_notice;
   int id = 1;
   for (const vision::ObjectPose& pose : report.objects) {

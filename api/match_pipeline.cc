@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "vision/stereo/lens_distortion.h"
+#include "vision/stereo/lens_matching.h"
 #include "vision/stereo/match_io.h"
 #include "vision/stereo/setup_checks.h"
 
@@ -15,37 +15,33 @@ vision::MatchReport RunMatchPipeline(const cv::Mat& left_grey, const cv::Mat& ri
                                      const vision::MatcherOptions& options,
                                      const vision::RefinementOptions& refinement,
                                      ocl::Runtime* runtime) {
-  // A chessboard calibration refers P and F to undistorted pixels: match on undistorted images,
-  // then report the matches in the pixels of the images as given.
+  // A board calibration refers P and F to undistorted pixels: match through the lens as points
+  // (vision::LensRoute::kPoints, as `pick`), or on undistorted images when a refinement searches
+  // image rows (the left-right check, the row sub-pixel fit); then report the matches in the
+  // pixels of the images as given.
+  const std::shared_ptr<const vision::StereoLens> lens =
+      calibration ? vision::LensOf(*calibration) : nullptr;
+  const bool through_points = lens && !options.candidates.rectified &&
+                              !refinement.left_right_check && !refinement.subpixel;
   cv::Mat left = left_grey, right = right_grey;
-  const calib::Intrinsics* lens =
-      calibration && calibration->intrinsics && !calibration->intrinsics->D1.empty()
-          ? &*calibration->intrinsics : nullptr;
-  if (lens) {
-    left = vision::UndistortImage(left_grey, lens->K1, lens->D1);
-    right = vision::UndistortImage(right_grey, lens->K2, lens->D2);
+  vision::MatcherOptions matcher = options;
+  if (through_points) {
+    matcher = vision::MatcherThroughLens(options, left_grey, right_grey, lens);
+  } else if (lens) {
+    left = vision::UndistortImage(left_grey, lens->left.K, lens->left.D);
+    right = vision::UndistortImage(right_grey, lens->right.K, lens->right.D);
   }
-  vision::MatchReport report = vision::MatchStereo(left, right, calibration, options, runtime);
+  vision::MatchReport report = vision::MatchStereo(left, right, calibration, matcher, runtime);
   // timing_ms.total covers the refinements too (as vision::MatchWithPreset counts them).
   const auto refine_start = std::chrono::steady_clock::now();
-  vision::RefineMatches(left, right, calibration, options, refinement, &report);
+  if (through_points) {
+    vision::RefineMatchesThroughLens(left, right, *calibration, matcher, refinement, *lens, &report);
+  } else {
+    vision::RefineMatches(left, right, calibration, matcher, refinement, &report);
+  }
   report.timing_ms.total +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - refine_start).count();
-  if (lens) {
-    std::vector<Eigen::Vector2f> lefts, rights;
-    for (const auto& m : report.matches) {
-      lefts.push_back(m.left);
-      rights.push_back(m.right);
-    }
-    lefts = vision::DistortPoints(lefts, lens->K1, lens->D1);
-    rights = vision::DistortPoints(rights, lens->K2, lens->D2);
-    for (std::size_t t = 0; t < report.matches.size(); ++t) {
-      report.matches[t].left = lefts[t];
-      report.matches[t].right = rights[t];
-    }
-    report.left_features = vision::DistortPoints(report.left_features, lens->K1, lens->D1);
-    report.right_features = vision::DistortPoints(report.right_features, lens->K2, lens->D2);
-  }
+  if (lens) vision::MatchesToCapturedPixels(*lens, &report);
   return report;
 }
 

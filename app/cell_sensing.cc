@@ -20,6 +20,10 @@ void CellSensingFlags::AddTo(CLI::App* cmd) {
                   "rectangle (long side of the top face's minimum-area rectangle) or moments "
                   "(thesis: 0.5 atan2(2 mu11, mu20 - mu02))")
       ->capture_default_str();
+  cmd->add_option("--lens-route", lens_route,
+                  "With lens distortion in --calib: points (features undistorted as points, the "
+                  "captured images read as they are) or images (both images undistorted first)")
+      ->capture_default_str();
   cmd->add_option("--max-residual", sensing.max_reprojection_error_px,
                   "Reject points whose reprojection residual exceeds this (px)")
       ->capture_default_str();
@@ -96,6 +100,11 @@ void CellSensingFlags::Resolve() {
   } else {
     throw std::invalid_argument("unknown --clustering '" + clustering + "' (grid or thesis)");
   }
+  if (auto route = vision::ParseLensRoute(lens_route)) {
+    sensing.lens_route = *route;
+  } else {
+    throw std::invalid_argument("unknown --lens-route '" + lens_route + "' (points or images)");
+  }
   if (auto method = vision::ParseYawMethod(yaw)) {
     sensing.pose.yaw_method = *method;
   } else {
@@ -130,19 +139,21 @@ SensedPair SenseCellPair(const std::string& left_path, const std::string& right_
   }
   // Named after the options here; SensePositions checks again for library callers.
   vision::CheckDistinctViews(pair.left.grey, pair.right.grey, "--left and --right");
-  // A chessboard calibration refers P to undistorted pixels (docs/calibration.md): sense on
-  // undistorted images (OBJECTS.json is in world mm; the overlay shows the undistorted left).
-  pair.left_grey = pair.left.grey;
-  pair.right_grey = pair.right.grey;
-  if (calibration.intrinsics && !calibration.intrinsics->D1.empty()) {
-    pair.left_grey = vision::UndistortImage(pair.left.grey, calibration.intrinsics->K1,
-                                            calibration.intrinsics->D1);
-    pair.right_grey = vision::UndistortImage(pair.right.grey, calibration.intrinsics->K2,
-                                             calibration.intrinsics->D2);
-  }
+  // A board calibration refers P to undistorted pixels (docs/calibration.md): SensePositions
+  // senses through the lens (OBJECTS.json is in world mm).
   pair.report =
-      vision::SensePositions(pair.left_grey, pair.right_grey, calibration, flags.sensing, runtime);
+      vision::SensePositions(pair.left.grey, pair.right.grey, calibration, flags.sensing, runtime);
   return pair;
+}
+
+std::pair<cv::Mat, cv::Mat> GreyInCalibrationPixels(const SensedPair& pair,
+                                                    const calib::StereoCalibration& calibration) {
+  if (!calibration.intrinsics || calibration.intrinsics->D1.empty()) {
+    return {pair.left.grey, pair.right.grey};
+  }
+  const calib::Intrinsics& lens = *calibration.intrinsics;
+  return {vision::UndistortImage(pair.left.grey, lens.K1, lens.D1),
+          vision::UndistortImage(pair.right.grey, lens.K2, lens.D2)};
 }
 
 nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& flags,
@@ -155,8 +166,10 @@ nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& f
   return json;
 }
 
-cv::Mat OverlayImageOf(const SensedPair& pair) {
-  return pair.left_grey.data == pair.left.grey.data ? pair.left.original : pair.left_grey;
+cv::Mat OverlayImageOf(const SensedPair& pair, const calib::StereoCalibration& calibration) {
+  if (!calibration.intrinsics || calibration.intrinsics->D1.empty()) return pair.left.original;
+  return vision::UndistortImage(pair.left.grey, calibration.intrinsics->K1,
+                                calibration.intrinsics->D1);
 }
 
 cv::Mat OverlayInInputPixels(const cv::Mat& overlay, const calib::StereoCalibration& calibration) {

@@ -19,6 +19,7 @@ namespace hnnstereo::app {
 struct CellSensingFlags {
   std::string clustering = "grid";
   std::string yaw = "rectangle";
+  std::string lens_route{vision::LensRouteName(vision::PositionSensingOptions().lens_route)};
   vision::PositionSensingOptions sensing;
   MatcherFlags flags;
   CellSensingFlags();  ///< the pick-cell matcher (PickCellMatcherOptions) as the flags' base
@@ -29,11 +30,11 @@ struct CellSensingFlags {
 
 struct SensedPair {
   vision::LoadedImage left, right;
-  cv::Mat left_grey, right_grey;  ///< undistorted when the calibration carries distortion
   vision::PositionSensingReport report;
 };
 
-/// Loads the pair (same size, the calibration's size), undistorts when D is present, senses.
+/// Loads the pair (same size, the calibration's size) and senses it (through the lens when D is
+/// present: PositionSensingOptions::lens_route).
 /// Builds and runs the opencl engine's kernels once (OpenClEngine::WarmUp) for the cell's
 /// matcher settings, so that the first trigger costs what later ones do; no-op without a
 /// runtime or for the other engines. Returns the milliseconds spent.
@@ -49,9 +50,14 @@ nlohmann::json ObjectsFileJson(const SensedPair& pair, const CellSensingFlags& f
                                const std::string& left_path, const std::string& right_path,
                                const std::string& calibration_path);
 
-/// The left image the parts were sensed on, for overlays: as stored, or undistorted when the
-/// calibration carries distortion (P1 then refers to undistorted pixels).
-cv::Mat OverlayImageOf(const SensedPair& pair);
+/// The pair's grey images in the pixels P1, P2 and F refer to: as stored, or undistorted
+/// (resampled) when the calibration carries distortion - for the probes along epipolar lines.
+std::pair<cv::Mat, cv::Mat> GreyInCalibrationPixels(const SensedPair& pair,
+                                                    const calib::StereoCalibration& calibration);
+
+/// The left image for overlays drawn through P1: as stored, or undistorted when the calibration
+/// carries distortion (P1 then refers to undistorted pixels).
+cv::Mat OverlayImageOf(const SensedPair& pair, const calib::StereoCalibration& calibration);
 
 /// An overlay drawn on OverlayImageOf's image, in the input image's pixels: resampled back
 /// through the lens when the calibration carries distortion, else as drawn.

@@ -41,7 +41,8 @@ vision::SwapComparison ProbeEpipolarLines(const SensedPair& pair,
                                           const PickArgs& args) {
   const std::pair<double, double> z_range =
       args.cell.sensing.matcher.candidates.z_range_mm.value_or(std::make_pair(-5.0, 200.0));
-  return vision::CompareWithSwappedCameras(pair.left_grey, pair.right_grey, calibration, z_range);
+  const auto [left_grey, right_grey] = GreyInCalibrationPixels(pair, calibration);
+  return vision::CompareWithSwappedCameras(left_grey, right_grey, calibration, z_range);
 }
 
 void ThrowIfLooksSwapped(const SensedPair& pair, const vision::SwapComparison& swap) {
@@ -67,7 +68,7 @@ std::vector<std::string> WritePickOutputs(const PickArgs& args, const SensedPair
   if (!args.overlay.empty()) {
     vision::WritePngAtomically(
         args.overlay,
-        OverlayInInputPixels(vision::DrawObjectOverlay(OverlayImageOf(pair), report, calibration.P1),
+        OverlayInInputPixels(vision::DrawObjectOverlay(OverlayImageOf(pair, calibration), report, calibration.P1),
                              calibration));
   }
   if (!args.ply.empty()) {

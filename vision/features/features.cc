@@ -313,6 +313,7 @@ FeatureReport DetectFeatures(const cv::Mat& grey, const FeatureOptions& options)
                                static_cast<float>(candidates[i].y));
     report.strength.push_back(candidates[i].strength);
   }
+  if (options.map_points) options.map_points(grey, &report.points);
   report.time_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return report;

@@ -3,6 +3,7 @@
 // Moravec, Sobel, with a cap on the count that keeps features spread over the image.
 
 #include <Eigen/Core>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -28,6 +29,10 @@ struct FeatureOptions {
   double sobel_threshold = 100.0;   ///< Sobel gradient magnitude threshold
   int border_px = 4;                ///< features closer than this to the border are dropped
   int max_features = 0;             ///< cap on the count, 0 = no cap; spread kept by grid bucketing
+  /// When set, moves the kept points of image `grey` (in place) to the pixels the matcher's
+  /// geometry works in: the point route of lens distortion undistorts them (LensRoute::kPoints,
+  /// vision/stereo/lens_distortion.h). Border and cap act on the image's own pixels first.
+  std::function<void(const cv::Mat& grey, std::vector<Eigen::Vector2f>* points)> map_points;
   /// Empty when valid; otherwise a readable reason naming the field.
   std::string Check() const;
 };

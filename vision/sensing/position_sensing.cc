@@ -11,6 +11,7 @@
 
 #include "calib/epipolar.h"
 #include "vision/stereo/correlation.h"
+#include "vision/stereo/lens_matching.h"
 #include "vision/stereo/setup_checks.h"
 #include "vision/sensing/triangulation.h"
 #include "common/timing.h"
@@ -223,15 +224,19 @@ double EmptyStripToTallerPart(const std::vector<ObjectPose>& poses, std::size_t 
 
 // Whether the outline of `pose`'s top face - its rectangle's corners, or 32 points of its
 // circle when round - at its height projects within `margin_px` of the border of either image
-// (of `image_size`), or beyond it.
+// (of `image_size`; captured through `lens` when not null), or beyond it.
 bool OutlineNearImageBorder(const ObjectPose& pose, const calib::StereoCalibration& calibration,
-                            const cv::Size& image_size, double margin_px) {
+                            const StereoLens* lens, const cv::Size& image_size, double margin_px) {
   const std::vector<Eigen::Vector2d> outline = TopOutline(pose);
-  for (const calib::ProjectionMatrix* P : {&calibration.P1, &calibration.P2}) {
+  for (int camera = 0; camera < 2; ++camera) {
+    const calib::ProjectionMatrix& P = camera == 0 ? calibration.P1 : calibration.P2;
     for (const Eigen::Vector2d& xy : outline) {
-      const Eigen::Vector3d x = *P * Eigen::Vector4d(xy.x(), xy.y(), pose.height_mm, 1.0);
+      const Eigen::Vector3d x = P * Eigen::Vector4d(xy.x(), xy.y(), pose.height_mm, 1.0);
       if (!(x.z() > 0.0)) return true;  // behind the camera: not in view
-      const double u = x.x() / x.z(), v = x.y() / x.z();
+      Eigen::Vector2d uv = x.hnormalized();
+      // Through a lens (point route) the border is the captured image's.
+      if (lens != nullptr) uv = (camera == 0 ? lens->left : lens->right).Distort(uv);
+      const double u = uv.x(), v = uv.y();
       // Pixel centres run from 0 to cols - 1 (OpenCV convention).
       if (!(u >= margin_px && v >= margin_px && u <= image_size.width - 1 - margin_px &&
             v <= image_size.height - 1 - margin_px)) {
@@ -340,16 +345,20 @@ std::string PositionSensingOptions::Check() const {
 namespace {
 
 // The left image's 3 x 3 Sobel gradients, taken once, when the first stage needs them (the
-// edge-angle test, the island joins' image veto, the image fit).
+// edge-angle test, the island joins' image veto, the image fit), in the pixels P1 projects to:
+// through the point route's `lens` (`grey` as captured, P1 in undistorted pixels) they are the
+// captured image's, looked up per undistorted pixel (GradientsPerUndistortedPixel); null: the
+// image's own.
 struct LeftGradients {
   const cv::Mat& grey;
+  const StereoLens* lens;
   cv::Mat x, y;
 
   void Need() {
-    if (x.empty()) {
-      cv::Sobel(grey, x, CV_32F, 1, 0, 3);
-      cv::Sobel(grey, y, CV_32F, 0, 1, 3);
-    }
+    if (!x.empty()) return;
+    cv::Sobel(grey, x, CV_32F, 1, 0, 3);
+    cv::Sobel(grey, y, CV_32F, 0, 1, 3);
+    if (lens != nullptr) GradientsPerUndistortedPixel(x, y, lens->left, &x, &y);
   }
 };
 
@@ -532,8 +541,9 @@ std::vector<ObjectPose> DropSmallClusters(const PositionSensingOptions& options,
 // sliver, a top longer than any part, a left-out narrow piece at its height beside it, a top
 // cut by the field of view (PositionSensingOptions documents each threshold).
 void FlagPose(const calib::StereoCalibration& calibration, const PositionSensingOptions& options,
-              const ObjectPoseOptions& pose_options, const cv::Mat& left_grey,
+              const ObjectPoseOptions& pose_options, const LeftGradients& gradients,
               const std::vector<ObjectPose>& narrow_pieces, ObjectPose* pose_out) {
+  const cv::Mat& left_grey = gradients.grey;
   ObjectPose& pose = *pose_out;
   // A disc fills pi / 4 of its square: a top whose hull is near a circle is no merge.
   pose.merged = !pose.round && pose.top_fill < options.min_top_fill &&
@@ -574,7 +584,8 @@ void FlagPose(const calib::StereoCalibration& calibration, const PositionSensing
   // A top cut by the field of view is a piece of a face.
   if (options.image_border_px > 0.0 && !left_grey.empty()) {
     pose.at_image_border =
-        OutlineNearImageBorder(pose, calibration, left_grey.size(), options.image_border_px);
+        OutlineNearImageBorder(pose, calibration, gradients.lens, left_grey.size(),
+                               options.image_border_px);
     if (pose.at_image_border) pose.merged = true;
   }
 }
@@ -688,7 +699,7 @@ void EstimateAndFlagPoses(const calib::StereoCalibration& calibration,
                         options.touch_reach_mm, kTouchMinHeightMm, pose_options.top_layer_mm,
                         &report->objects);
     for (ObjectPose& pose : report->objects) {
-      FlagPose(calibration, options, pose_options, left_grey, narrow_pieces, &pose);
+      FlagPose(calibration, options, pose_options, *gradients, narrow_pieces, &pose);
       if (pose.merged) ++report->merged;
     }
     FlagTopsBesideSlivers(options, pose_options, report);
@@ -706,10 +717,11 @@ void EstimateAndFlagPoses(const calib::StereoCalibration& calibration,
 namespace {
 
 // SensePositionsFromMatches with `options` already scaled to the images (ScaledForImage).
+// `lens`: the point route's (matches in undistorted pixels, `left_grey` as captured), or null.
 PositionSensingReport SenseScaledFromMatches(MatchReport match,
                                              const calib::StereoCalibration& calibration,
                                              const PositionSensingOptions& options,
-                                             const cv::Mat& left_grey) {
+                                             const cv::Mat& left_grey, const StereoLens* lens) {
   if (const std::string problem = calibration.Check(); !problem.empty()) {
     throw std::invalid_argument("calibration: " + problem);
   }
@@ -721,7 +733,7 @@ PositionSensingReport SenseScaledFromMatches(MatchReport match,
   PositionSensingReport report;
   report.match = std::move(match);
   report.timing_ms.match = report.match.timing_ms.total;
-  LeftGradients gradients{left_grey, {}, {}};
+  LeftGradients gradients{left_grey, lens, {}, {}};
 
   auto start = std::chrono::steady_clock::now();
   TriangulateMatches(rig, options, &gradients, &report);
@@ -756,6 +768,32 @@ void NoteScale(const PositionSensingOptions& scaled, const cv::Size& size,
   report->max_features = scaled.matcher.features.max_features;
 }
 
+// Match, refine and sense a pair with the options scaled to it; through `lens` (the point
+// route: the images as captured) when not null.
+PositionSensingReport SenseOnImages(const cv::Mat& left_grey, const cv::Mat& right_grey,
+                                    const calib::StereoCalibration& calibration,
+                                    const PositionSensingOptions& scaled,
+                                    const std::shared_ptr<const StereoLens>& lens,
+                                    ocl::Runtime* runtime) {
+  const MatcherOptions matcher =
+      lens ? MatcherThroughLens(scaled.matcher, left_grey, right_grey, lens) : scaled.matcher;
+  MatchReport match = MatchStereo(left_grey, right_grey, &calibration, matcher, runtime);
+  const auto start = std::chrono::steady_clock::now();
+  if (lens) {
+    RefineMatchesThroughLens(left_grey, right_grey, calibration, matcher, scaled.refinement, *lens,
+                             &match);
+  } else {
+    RefineMatches(left_grey, right_grey, &calibration, matcher, scaled.refinement, &match);
+  }
+  const double refine_ms = MillisecondsSince(start);
+  PositionSensingReport report =
+      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey, lens.get());
+  NoteScale(scaled, left_grey.size(), &report);
+  report.timing_ms.refine = refine_ms;
+  report.timing_ms.total += refine_ms;
+  return report;
+}
+
 }  // namespace
 
 PositionSensingReport SensePositionsFromMatches(MatchReport match,
@@ -767,7 +805,7 @@ PositionSensingReport SensePositionsFromMatches(MatchReport match,
   }
   const PositionSensingOptions scaled = options.ScaledForImage(left_grey.size());
   PositionSensingReport report =
-      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey);
+      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey, nullptr);
   NoteScale(scaled, left_grey.size(), &report);
   return report;
 }
@@ -790,16 +828,18 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
   // One image given twice would give a fake part at a fake height (vision/setup_checks.h).
   CheckDistinctViews(left_grey, right_grey);
   const PositionSensingOptions scaled = options.ScaledForImage(left_grey.size());
-  MatchReport match = MatchStereo(left_grey, right_grey, &calibration, scaled.matcher, runtime);
-  const auto start = std::chrono::steady_clock::now();
-  RefineMatches(left_grey, right_grey, &calibration, scaled.matcher, scaled.refinement, &match);
-  const double refine_ms = MillisecondsSince(start);
-  PositionSensingReport report =
-      SenseScaledFromMatches(std::move(match), calibration, scaled, left_grey);
-  NoteScale(scaled, left_grey.size(), &report);
-  report.timing_ms.refine = refine_ms;
-  report.timing_ms.total += refine_ms;
-  return report;
+  const std::shared_ptr<const StereoLens> lens = LensOf(calibration);
+  if (lens && options.lens_route == LensRoute::kImages) {
+    const auto start = std::chrono::steady_clock::now();
+    const cv::Mat left = UndistortImage(left_grey, lens->left.K, lens->left.D);
+    const cv::Mat right = UndistortImage(right_grey, lens->right.K, lens->right.D);
+    const double undistort_ms = MillisecondsSince(start);
+    PositionSensingReport report = SenseOnImages(left, right, calibration, scaled, nullptr, runtime);
+    report.timing_ms.match += undistort_ms;
+    report.timing_ms.total += undistort_ms;
+    return report;
+  }
+  return SenseOnImages(left_grey, right_grey, calibration, scaled, lens, runtime);
 }
 
 nlohmann::json ObjectsJson(const PositionSensingReport& report,

@@ -17,6 +17,7 @@
 #include "vision/stereo/matcher_presets.h"
 #include "vision/sensing/object_pose.h"
 #include "vision/sensing/top_face_edges.h"
+#include "vision/stereo/lens_distortion.h"
 #include "vision/stereo/stereo_matcher.h"
 
 namespace hnnstereo::vision {
@@ -154,6 +155,11 @@ struct PositionSensingOptions {
   /// PickCellRefinementOptions(), the epipolar snap and the parabola sub-pixel fit of ZNCC along
   /// the epipolar line; the left-right check stays off. SubPixelMatchesTightenTheHeights.
   RefinementOptions refinement = PickCellRefinementOptions();
+  /// A calibration with lens distortion (D1, D2): features undistorted as points, windows and
+  /// gradients read from the captured images (kPoints), or both images resampled first
+  /// (kImages). docs/decisions.md gives the figures behind the default.
+  /// PointRouteSensesADistortedCellAsTheImageRouteDoes.
+  LensRoute lens_route = LensRoute::kPoints;
   /// The image width (px) that the pixel-unit settings above and the matcher's feature cap are
   /// given for: render's 640 x 480 cell, where they were tuned. SensePositions runs
   /// ScaledForImage(the pair's size); 0 runs every setting as given.
@@ -216,7 +222,10 @@ struct PositionSensingReport {
   PositionSensingTiming timing_ms;
 };
 
-/// Matches, triangulates, clusters and estimates poses. `calibration` is required (P1, P2, F).
+/// Matches, triangulates, clusters and estimates poses. `calibration` is required (P1, P2, F);
+/// the images are as captured: with distortion in the calibration (D1, D2) they are sensed
+/// through the lens (options.lens_route), and the report's matches, points and poses are in
+/// undistorted pixels (P's) and world mm.
 /// Throws std::invalid_argument on bad options / calibration or when the pair is one image twice
 /// (CheckDistinctViews), std::runtime_error when matching fails (no features...).
 PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& right_grey,
@@ -224,7 +233,8 @@ PositionSensingReport SensePositions(const cv::Mat& left_grey, const cv::Mat& ri
                                      const PositionSensingOptions& options, ocl::Runtime* runtime);
 
 /// The same pipeline after matching (tests, and matches from elsewhere). `left_grey` (the left
-/// image) is needed for the edge-angle test; empty skips it. The options are scaled to its size
+/// image, in the matches' pixels: P's, undistorted when the calibration has distortion) is
+/// needed for the edge-angle test; empty skips it. The options are scaled to its size
 /// (ScaledForImage) as SensePositions scales them.
 PositionSensingReport SensePositionsFromMatches(MatchReport match,
                                                 const calib::StereoCalibration& calibration,

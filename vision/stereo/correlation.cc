@@ -386,9 +386,35 @@ float ZnccMatcher::CensusSimilarity(int lx, int ly, int rx, int ry, bool referen
   return similarity;
 }
 
+Eigen::Vector2f ZnccMatcher::InLeftImage(const Eigen::Vector2f& point) const {
+  return data_term_.lens ? data_term_.lens->left.Distort(point.cast<double>()).cast<float>() : point;
+}
+
+Eigen::Vector2f ZnccMatcher::InRightImage(const Eigen::Vector2f& point) const {
+  return data_term_.lens ? data_term_.lens->right.Distort(point.cast<double>()).cast<float>() : point;
+}
+
+void ZnccMatcher::RefuseLens(const char* what) const {
+  if (data_term_.lens) {
+    std::string message = "ZnccMatcher::";
+    message.append(what).append(" searches image rows: not with a lens (data_term.lens)");
+    throw std::logic_error(message);
+  }
+}
+
 float ZnccMatcher::ReverseSimilarity(const Eigen::Vector2f& left_point,
                                      const Eigen::Vector2f& right_point) const {
-  if (data_term_.kind != DataTermOptions::Kind::kCensus) return (*this)(left_point, right_point);
+  return ImageReverseSimilarity(InLeftImage(left_point), InRightImage(right_point));
+}
+
+float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
+                              const Eigen::Vector2f& right_point) const {
+  return ImageSimilarity(InLeftImage(left_point), InRightImage(right_point));
+}
+
+float ZnccMatcher::ImageReverseSimilarity(const Eigen::Vector2f& left_point,
+                                          const Eigen::Vector2f& right_point) const {
+  if (data_term_.kind != DataTermOptions::Kind::kCensus) return ImageSimilarity(left_point, right_point);
   int lx = 0, ly = 0, rx = 0, ry = 0;
   if (!RoundToPixel(left_point, left_, &lx, &ly) || !RoundToPixel(right_point, right_, &rx, &ry)) {
     return 0.0f;
@@ -396,8 +422,8 @@ float ZnccMatcher::ReverseSimilarity(const Eigen::Vector2f& left_point,
   return CensusSimilarity(lx, ly, rx, ry, false);
 }
 
-float ZnccMatcher::operator()(const Eigen::Vector2f& left_point,
-                              const Eigen::Vector2f& right_point) const {
+float ZnccMatcher::ImageSimilarity(const Eigen::Vector2f& left_point,
+                                   const Eigen::Vector2f& right_point) const {
   if (data_term_.kind == DataTermOptions::Kind::kCensus) {
     int lx = 0, ly = 0, rx = 0, ry = 0;
     if (!RoundToPixel(left_point, left_, &lx, &ly) ||
@@ -502,6 +528,7 @@ void ZnccMatcher::RunDots(const float* fixed, std::size_t fixed_stride, const fl
 
 void ZnccMatcher::RowProfile(const Eigen::Vector2f& left_point, int d_min, int d_max,
                              float* out) const {
+  RefuseLens("RowProfile");
   const int count = d_max - d_min + 1;
   if (count <= 0) return;
   if (data_term_.kind == DataTermOptions::Kind::kCensus) {
@@ -600,6 +627,7 @@ void ZnccMatcher::CensusRowProfile(const Eigen::Vector2f& left_point, int d_min,
 
 void ZnccMatcher::ReverseRowProfile(const Eigen::Vector2f& right_point, int d_min, int d_max,
                                     float* out) const {
+  RefuseLens("ReverseRowProfile");
   const int count = d_max - d_min + 1;
   if (count <= 0) return;
   if (data_term_.kind == DataTermOptions::Kind::kCensus) {

@@ -5,12 +5,15 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+
+#include "vision/stereo/lens_distortion.h"
 
 namespace hnnstereo::vision {
 
@@ -33,6 +36,11 @@ struct DataTermOptions {
   /// reference image (the left one; the right one in the reverse search). Grey levels;
   /// 0 = plain box sum.
   double support_gamma = 30.0;
+  /// The point route of lens distortion (LensRoute::kPoints): the points asked about are
+  /// undistorted pixels, and each window is read from the captured image around the point's
+  /// captured pixel (CameraLens::Distort, then rounded as without a lens). The row searches
+  /// (RowProfile, ReverseRowProfile) refuse it. Null: the points are the images' own pixels.
+  std::shared_ptr<const StereoLens> lens;
   std::string Check() const;
   bool operator==(const DataTermOptions&) const = default;
 };
@@ -92,6 +100,15 @@ class ZnccMatcher {
   const DataTermOptions& data_term() const { return data_term_; }
 
  private:
+  // The captured pixel of a point asked about (itself without data_term.lens).
+  Eigen::Vector2f InLeftImage(const Eigen::Vector2f& point) const;
+  Eigen::Vector2f InRightImage(const Eigen::Vector2f& point) const;
+  // Throws std::logic_error naming `what` when data_term.lens is set.
+  void RefuseLens(const char* what) const;
+  // operator() and ReverseSimilarity at the images' own pixels.
+  float ImageSimilarity(const Eigen::Vector2f& left_point, const Eigen::Vector2f& right_point) const;
+  float ImageReverseSimilarity(const Eigen::Vector2f& left_point,
+                               const Eigen::Vector2f& right_point) const;
   // Window dot products of the fixed window with top-left corner `fixed` against `count`
   // windows of `run` whose top-left corners are run_corner, run_corner + 1, ... (one row).
   void RunDots(const float* fixed, std::size_t fixed_stride, const float* run_corner,

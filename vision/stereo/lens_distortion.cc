@@ -1,9 +1,11 @@
 #include "vision/stereo/lens_distortion.h"
 
 #include <Eigen/LU>
+#include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 namespace hnnstereo::vision {
 namespace {
@@ -73,6 +75,72 @@ std::vector<Eigen::Vector2f> UndistortPoints(const std::vector<Eigen::Vector2f>&
   out.reserve(undistorted.size());
   for (const auto& p : undistorted) out.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
   return out;
+}
+
+std::string CameraLens::Check() const {
+  if (D.size() == 4 || D.size() == 5 || D.size() == 8) return {};
+  std::ostringstream out;
+  out << "lens distortion needs 4, 5 or 8 coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6]]), has "
+      << D.size();
+  return out.str();
+}
+
+Eigen::Vector2d CameraLens::Distort(const Eigen::Vector2d& undistorted_px) const {
+  // Normalised coordinates (K with its skew), then OpenCV's radial (rational) and tangential
+  // terms (cv::projectPoints).
+  const double y = (undistorted_px.y() - K(1, 2)) / K(1, 1);
+  const double x = (undistorted_px.x() - K(0, 2) - K(0, 1) * y) / K(0, 0);
+  const auto d = [&](std::size_t i) { return i < D.size() ? D[i] : 0.0; };
+  const double r2 = x * x + y * y, r4 = r2 * r2, r6 = r4 * r2;
+  const double radial = (1.0 + d(0) * r2 + d(1) * r4 + d(4) * r6) /
+                        (1.0 + d(5) * r2 + d(6) * r4 + d(7) * r6);
+  const double xd = x * radial + 2.0 * d(2) * x * y + d(3) * (r2 + 2.0 * x * x);
+  const double yd = y * radial + d(2) * (r2 + 2.0 * y * y) + 2.0 * d(3) * x * y;
+  return {K(0, 0) * xd + K(0, 1) * yd + K(0, 2), K(1, 1) * yd + K(1, 2)};
+}
+
+void GradientsPerUndistortedPixel(const cv::Mat& gradient_x, const cv::Mat& gradient_y,
+                                  const CameraLens& lens, cv::Mat* undistorted_x,
+                                  cv::Mat* undistorted_y) {
+  const cv::Size size = gradient_x.size();
+  cv::Mat map_x, map_y;  // the captured pixel of each undistorted pixel
+  cv::initUndistortRectifyMap(CameraMatrix(lens.K), cv::Mat(lens.D, true), cv::noArray(),
+                              CameraMatrix(lens.K), size, CV_32FC1, map_x, map_y);
+  // New buffers: the outputs may be the inputs.
+  cv::Mat out_x(size, CV_32F, cv::Scalar(0)), out_y(size, CV_32F, cv::Scalar(0));
+  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& rows) {
+    for (int v = rows.start; v < rows.end; ++v) {
+      const int v0 = std::max(v - 1, 0), v1 = std::min(v + 1, size.height - 1);
+      for (int u = 0; u < size.width; ++u) {
+        const long cu = std::lround(map_x.at<float>(v, u)), cv = std::lround(map_y.at<float>(v, u));
+        if (cu < 0 || cv < 0 || cu >= size.width || cv >= size.height) continue;
+        const float gx = gradient_x.at<float>(static_cast<int>(cv), static_cast<int>(cu));
+        const float gy = gradient_y.at<float>(static_cast<int>(cv), static_cast<int>(cu));
+        const int u0 = std::max(u - 1, 0), u1 = std::min(u + 1, size.width - 1);
+        // Columns of J: the captured pixel's change per undistorted pixel in u, then in v.
+        const float du = static_cast<float>(std::max(u1 - u0, 1));
+        const float dv = static_cast<float>(std::max(v1 - v0, 1));
+        const float j00 = (map_x.at<float>(v, u1) - map_x.at<float>(v, u0)) / du;
+        const float j10 = (map_y.at<float>(v, u1) - map_y.at<float>(v, u0)) / du;
+        const float j01 = (map_x.at<float>(v1, u) - map_x.at<float>(v0, u)) / dv;
+        const float j11 = (map_y.at<float>(v1, u) - map_y.at<float>(v0, u)) / dv;
+        out_x.at<float>(v, u) = j00 * gx + j10 * gy;
+        out_y.at<float>(v, u) = j01 * gx + j11 * gy;
+      }
+    }
+  });
+  *undistorted_x = out_x;
+  *undistorted_y = out_y;
+}
+
+std::string_view LensRouteName(LensRoute route) {
+  return route == LensRoute::kPoints ? "points" : "images";
+}
+
+std::optional<LensRoute> ParseLensRoute(std::string_view name) {
+  if (name == "points") return LensRoute::kPoints;
+  if (name == "images") return LensRoute::kImages;
+  return std::nullopt;
 }
 
 }  // namespace hnnstereo::vision
