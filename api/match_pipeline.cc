@@ -28,7 +28,7 @@ vision::MatchReport RunMatchPipeline(const cv::Mat& left_grey, const cv::Mat& ri
   vision::MatchReport report = vision::MatchStereo(left, right, calibration, options, runtime);
   // timing_ms.total covers the refinements too (as vision::MatchWithPreset counts them).
   const auto refine_start = std::chrono::steady_clock::now();
-  vision::RefineMatches(left, right, calibration, options, refinement, &report);
+  vision::RefineMatches(left, right, calibration, options, refinement, &report, runtime);
   report.timing_ms.total +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - refine_start).count();
   if (lens) {
