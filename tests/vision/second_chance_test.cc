@@ -86,18 +86,30 @@ FirstPass MakeFirstPass(const ZnccMatcher& similarity) {
   return first;
 }
 
+// RetryUnmatchedFeatures on the first pass, on the cpu engine.
+struct Retried {
+  std::vector<StereoMatch> matches;
+  std::vector<DisparityBand> bands;
+  SecondChanceReport report;
+};
+
+Retried Retry(const ZnccMatcher& similarity, const FirstPass& first, const MatcherOptions& matcher,
+              const SecondChanceOptions& options) {
+  Retried retried;
+  RetryUnmatchedFeatures(similarity, first.features, first.matches, matcher, options, nullptr,
+                         &retried.matches, &retried.bands, &retried.report);
+  return retried;
+}
+
 TEST(SecondChance, FillsAHoleWithTheRightDisparitiesOnBothSidesOfADepthStep) {
   const StepPair pair = MakeStepPair(42);
   const MatcherOptions matcher = CpuDefault();
   const ZnccMatcher similarity(pair.left, pair.right, matcher.zncc_window, matcher.data_term);
   const FirstPass first = MakeFirstPass(similarity);
-  SecondChanceOptions options;
-  options.enabled = true;
-  std::vector<StereoMatch> retried;
-  std::vector<DisparityBand> bands;
-  SecondChanceReport report;
-  RetryUnmatchedFeatures(similarity, first.features, first.matches, matcher, options, nullptr,
-                         &retried, &bands, &report);
+  const Retried second = Retry(similarity, first, matcher, SecondChanceOptions{});
+  const std::vector<StereoMatch>& retried = second.matches;
+  const std::vector<DisparityBand>& bands = second.bands;
+  const SecondChanceReport& report = second.report;
   EXPECT_TRUE(report.applied);
   EXPECT_EQ(report.unmatched, first.in_hole);
   EXPECT_EQ(report.retried, first.in_hole);  // the hole is narrower than two support radii
@@ -129,12 +141,7 @@ TEST(SecondChance, ItsMatchesCarryTheConfidencePenalty) {
   CountAgreeingNeighbours(first.matches);
   for (StereoMatch& m : first.matches) m.confidence = MatchConfidence(m, matcher.confidence);
   SecondChanceOptions options;
-  options.enabled = true;
-  std::vector<StereoMatch> retried;
-  std::vector<DisparityBand> bands;
-  SecondChanceReport report;
-  RetryUnmatchedFeatures(similarity, first.features, first.matches, matcher, options, nullptr,
-                         &retried, &bands, &report);
+  const std::vector<StereoMatch> retried = Retry(similarity, first, matcher, options).matches;
   ASSERT_FALSE(retried.empty());
   std::vector<StereoMatch> all = first.matches;
   const int added = AddSecondChanceMatches(retried, matcher.confidence, options, 1.0f, &all);
