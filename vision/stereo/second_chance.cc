@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <unordered_set>
 
+#include <opencv2/core/utility.hpp>
+
 #include "common/point_grid.h"
 #include "common/timing.h"
 #include "host/decode.h"
@@ -157,12 +159,23 @@ void RetryUnmatchedFeatures(const ZnccMatcher& similarity,
   hnn::MatchingProblem problem;
   problem.kind = hnn::NetworkKind::kFeatureVsDisparity;
   problem.n_columns = std::max(0, d_max - d_min + 1);
+  // Each retried feature's candidates on OpenCV's thread pool (a row's similarity profile is
+  // independent of the others'), then in row order.
+  const int n_retried = static_cast<int>(rows.retried.size());
+  std::vector<std::vector<hnn::Candidate>> row_candidates(rows.retried.size());
+  cv::parallel_for_(cv::Range(0, n_retried), [&](const cv::Range& range) {
+    for (int row = range.start; row < range.end; ++row) {
+      const auto r = static_cast<std::size_t>(row);
+      const auto i = static_cast<std::size_t>(rows.retried[r]);
+      (*check_bands)[i] =
+          AppendRetriedCandidates(row, left_features[i], rows.backing[r], matches, similarity,
+                                  options, d_min, d_max, &row_candidates[r]);
+    }
+  });
   for (std::size_t row = 0; row < rows.retried.size(); ++row) {
-    const auto i = static_cast<std::size_t>(rows.retried[row]);
-    problem.left_points.push_back(left_features[i]);
-    (*check_bands)[i] = AppendRetriedCandidates(static_cast<int>(row), left_features[i],
-                                                rows.backing[row], matches, similarity, options,
-                                                d_min, d_max, &problem.candidates);
+    problem.left_points.push_back(left_features[static_cast<std::size_t>(rows.retried[row])]);
+    problem.candidates.insert(problem.candidates.end(), row_candidates[row].begin(),
+                              row_candidates[row].end());
   }
   // The support rows: one neuron each, at the match's own (sub-pixel) right point. Alone in its
   // row it has no rival, so it stays on and lends the retried neurons the compatibility of its
