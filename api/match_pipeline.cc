@@ -37,7 +37,7 @@ vision::MatchReport RunMatchPipeline(const cv::Mat& left_grey, const cv::Mat& ri
   if (through_points) {
     vision::RefineMatchesThroughLens(left, right, *calibration, matcher, refinement, *lens, &report);
   } else {
-    vision::RefineMatches(left, right, calibration, matcher, refinement, &report);
+    vision::RefineMatches(left, right, calibration, matcher, refinement, &report, runtime);
   }
   report.timing_ms.total +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - refine_start).count();

@@ -230,6 +230,8 @@ const std::map<std::string, NamedSetter>& NamedOptions() {
        [](auto& n, auto& v, auto& s) { s.refinement.epipolar_snap = ParseFlag(n, v); }},
       {"epipolar-subpixel",
        [](auto& n, auto& v, auto& s) { s.refinement.epipolar_subpixel = ParseFlag(n, v); }},
+      {"second-chance",
+       [](auto& n, auto& v, auto& s) { s.refinement.second_chance.enabled = ParseFlag(n, v); }},
   };
   return options;
 }

@@ -272,6 +272,9 @@ void MatcherFlags::AddRefinementFlags(CLI::App* cmd) {
            "Unrectified pairs: move right points onto the left point's epipolar line");
   AddOnOff(cmd, "epipolar-subpixel", r.epipolar_subpixel,
            "Unrectified pairs: parabola sub-pixel fit along the epipolar line");
+  AddOnOff(cmd, "second-chance", r.second_chance.enabled,
+           "Rectified pairs, disparity network: a second network over the features left "
+           "unmatched, its candidates from the matched neighbours' disparities");
 }
 
 void MatcherFlags::AddEnergyFlags(CLI::App* cmd) {

@@ -567,7 +567,8 @@ std::vector<Eigen::Vector2f> EvaluatePresets(const MiddleburyPair& pair, const E
       }
       MatchReport report = cached->second;
       const auto refine_start = Clock::now();
-      RefineMatches(pair.left_grey, pair.right_grey, nullptr, preset.matcher, preset.refinement, &report);
+      RefineMatches(pair.left_grey, pair.right_grey, nullptr, preset.matcher, preset.refinement, &report,
+                    runtime);
       report.timing_ms.total += MillisecondsSince(refine_start);
       if (!report.engine_notice.empty()) evaluation->notices.push_back(report.engine_notice);
       matches = FromReport(preset.name, report);

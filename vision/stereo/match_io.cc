@@ -66,6 +66,13 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
                           {"budget_bytes", options.memory_budget_bytes},
                           {"left_features_matched", report.memory_fit.left_features_matched}};
   }
+  if (report.second_chance.applied) {
+    const SecondChanceReport& s = report.second_chance;
+    json["timing_ms"]["second_chance"] = report.timing_ms.second_chance;
+    json["second_chance"] = {{"unmatched", s.unmatched}, {"retried", s.retried},
+                             {"support", s.support},     {"neurons", s.neurons},
+                             {"matched", s.matched},     {"over_memory_budget", s.over_memory_budget}};
+  }
   if (report.coarse_to_fine.applied) {
     const CoarseToFineReport& c = report.coarse_to_fine;
     json["timing_ms"]["coarse"] = report.timing_ms.coarse;
@@ -129,12 +136,12 @@ nlohmann::json MatchFeaturesJson(const MatchReport& report) {
     rows.push_back({m.left.x(), m.left.y(), m.right.x(), m.right.y(), m.activation, m.confidence,
                     m.potential_margin, m.correlation, m.correlation_margin, m.neighbours[0],
                     m.agreeing[0], m.neighbours[1], m.agreeing[1], m.neighbours[2], m.agreeing[2],
-                    m.neighbours[3], m.agreeing[3], m.surface_residual});
+                    m.neighbours[3], m.agreeing[3], m.surface_residual, m.second_chance ? 1 : 0});
   }
   return {{"columns", {"xl", "yl", "xr", "yr", "activation", "confidence", "potential_margin",
                        "correlation", "correlation_margin", "neighbours_3", "agreeing_3",
                        "neighbours_6", "agreeing_6", "neighbours_12", "agreeing_12",
-                       "neighbours_24", "agreeing_24", "surface_residual"}},
+                       "neighbours_24", "agreeing_24", "surface_residual", "second_chance"}},
           {"rows", std::move(rows)}};
 }
 

@@ -9,6 +9,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/timing.h"
 #include "vision/stereo/correlation.h"
 
 namespace hnnstereo::vision {
@@ -44,7 +45,7 @@ std::string RefinementOptions::Check() const {
     return "subpixel_min_offset_px must be in [0, 0.5] (got " +
            std::to_string(subpixel_min_offset_px) + ")";
   }
-  return {};
+  return second_chance.Check();
 }
 
 std::string MatcherPreset::Check() const {
@@ -112,6 +113,9 @@ MatcherPreset AccurateDefaultPreset() {
   // Tsukuba's loses without that floor; docs/accuracy.md).
   preset.refinement.subpixel = true;
   preset.refinement.subpixel_min_offset_px = 0.1;
+  // A second network over the features left unmatched, its candidates from the matched
+  // neighbours' disparities (vision/stereo/second_chance.h; docs/matching.md).
+  preset.refinement.second_chance.enabled = true;
   // The matches settle long before the energy does (docs/engine.md): the run stops when every
   // row's decision has settled (checked every 2 steps, twice in a row).
   preset.matcher.dynamics.stop_rule = hnn::DynamicsOptions::StopRule::kDecisions;
@@ -283,6 +287,25 @@ void RefineOnTables(const TableRefiner& refiner, std::vector<StereoMatch>* match
 }
 
 
+// The second chance (vision/stereo/second_chance.h) after `first_pass` checked and refined the
+// network's matches: the retried features' winners pass the same check, over the levels each
+// searched, and the same sub-pixel fit, then join the matches with their weaker confidence.
+void GiveSecondChance(const TableRefiner& first_pass, const MatcherOptions& matcher,
+                      const SecondChanceOptions& options, ocl::Runtime* runtime,
+                      MatchReport* report) {
+  std::vector<StereoMatch> retried;
+  std::vector<DisparityBand> searched;
+  RetryUnmatchedFeatures(first_pass.zncc, report->left_features, report->matches, matcher, options,
+                         runtime, &retried, &searched, &report->second_chance);
+  const TableRefiner second_pass{first_pass.left_grey, first_pass.calibration, first_pass.zncc,
+                                 first_pass.refinement, first_pass.rectified, first_pass.d_min,
+                                 first_pass.d_max, searched};
+  RefineOnTables(second_pass, &retried);
+  report->second_chance.matched =
+      AddSecondChanceMatches(std::move(retried), matcher.confidence, options,
+                             std::ldexp(1.0f, -report->coarse_to_fine.levels), &report->matches);
+}
+
 }  // namespace
 
 void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey,
@@ -322,22 +345,27 @@ void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey
 
 void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                    const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
-                   const RefinementOptions& refinement, MatchReport* report) {
+                   const RefinementOptions& refinement, MatchReport* report,
+                   ocl::Runtime* runtime) {
   if (auto error = refinement.Check(); !error.empty()) throw std::invalid_argument(error);
   // Taken out of the report: its tables are only needed here, and a kept report stays small.
   std::shared_ptr<const ZnccMatcher> similarity = std::move(report->similarity);
+  const bool rectified = matcher.candidates.rectified || calibration == nullptr;
+  // Not behind a memory-budget fit: the features it left out were never tried.
+  const bool second_chance = refinement.second_chance.enabled && rectified &&
+                             matcher.candidates.kind == hnn::NetworkKind::kFeatureVsDisparity &&
+                             !matcher.candidates.dense && !report->memory_fit.applied;
   if (!refinement.left_right_check && !refinement.subpixel && !refinement.epipolar_snap &&
-      !refinement.epipolar_subpixel) {
+      !refinement.epipolar_subpixel && !second_chance) {
     return;
   }
-  const bool rectified = matcher.candidates.rectified || calibration == nullptr;
   if (!rectified && calibration == nullptr) {
     throw std::invalid_argument("RefineMatches: an unrectified pair needs its calibration");
   }
   // The epipolar snap and sub-pixel fit run after the left-right check.
   const bool along_epipolar_lines =
       !rectified && (refinement.epipolar_snap || refinement.epipolar_subpixel);
-  if (refinement.left_right_check || (refinement.subpixel && rectified)) {
+  if (refinement.left_right_check || (refinement.subpixel && rectified) || second_chance) {
     // The matcher's own similarity tables when they are the ones asked for (MatchStereo's, on
     // the same pair), else built here.
     if (!similarity || similarity->window() != matcher.zncc_window ||
@@ -351,6 +379,11 @@ void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                                static_cast<int>(std::floor(matcher.candidates.max_disparity)),
                                report->check_bands};
     RefineOnTables(refiner, &report->matches);
+    if (second_chance) {
+      const auto start = std::chrono::steady_clock::now();
+      GiveSecondChance(refiner, matcher, refinement.second_chance, runtime, report);
+      report->timing_ms.second_chance = common::MillisecondsSince(start);
+    }
   }
   if (along_epipolar_lines) {
     RefineAllAlongEpipolarLines(left_grey, right_grey, calibration->F, matcher.zncc_window,
@@ -364,7 +397,8 @@ MatchReport MatchWithPreset(const cv::Mat& left_grey, const cv::Mat& right_grey,
   if (auto error = preset.Check(); !error.empty()) throw std::invalid_argument(error);
   MatchReport report = MatchStereo(left_grey, right_grey, calibration, preset.matcher, runtime);
   const auto start = std::chrono::steady_clock::now();
-  RefineMatches(left_grey, right_grey, calibration, preset.matcher, preset.refinement, &report);
+  RefineMatches(left_grey, right_grey, calibration, preset.matcher, preset.refinement, &report,
+                runtime);
   report.timing_ms.total +=
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return report;

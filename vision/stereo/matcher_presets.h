@@ -35,6 +35,10 @@ struct RefinementOptions {
   /// Unrectified pairs, after the snap: the parabola fit of `subpixel` along the epipolar line,
   /// with bilinearly interpolated right windows.
   bool epipolar_subpixel = false;
+  /// Rectified pairs, feature-vs-disparity network, after the check and the fit: a second
+  /// network over the features left unmatched (vision/stereo/second_chance.h); its matches pass
+  /// the left-right check over the levels they searched and the sub-pixel fit.
+  SecondChanceOptions second_chance;
   std::string Check() const;
 };
 
@@ -78,9 +82,11 @@ void RefineAlongEpipolarLine(const cv::Mat& left_grey, const cv::Mat& right_grey
 /// The refinements alone, on a finished report (with a calibration the left-right check
 /// searches the epipolar line F^T x_r and the snap / sub-pixel work along F x_l). The report
 /// must come from MatchStereo on this same pair: its `similarity` tables are reused (when they
-/// are the data term asked for) and released.
+/// are the data term asked for) and released. `runtime`: the second chance's network runs on
+/// it (opencl engine; null: the cpu engine).
 void RefineMatches(const cv::Mat& left_grey, const cv::Mat& right_grey,
                    const calib::StereoCalibration* calibration, const MatcherOptions& matcher,
-                   const RefinementOptions& refinement, MatchReport* report);
+                   const RefinementOptions& refinement, MatchReport* report,
+                   ocl::Runtime* runtime = nullptr);
 
 }  // namespace hnnstereo::vision

@@ -130,9 +130,9 @@ void DetectBothFeatures(const cv::Mat& left_grey, const cv::Mat& right_grey,
   }
 }
 
-// Runs the network on the engine asked for; the opencl engine without a runtime falls back to
-// the cpu engine with a notice in `engine_notice`.
-hnn::SolveReport SolveNetwork(const hnn::MatchingProblem& problem, const MatcherOptions& options,
+}  // namespace
+
+hnn::SolveReport SolveMatchingNetwork(const hnn::MatchingProblem& problem, const MatcherOptions& options,
                               ocl::Runtime* runtime, std::string* engine_notice) {
   hnn::EngineKind engine = options.engine;
   if (engine == hnn::EngineKind::kOpenCL && runtime == nullptr) {
@@ -151,6 +151,8 @@ hnn::SolveReport SolveNetwork(const hnn::MatchingProblem& problem, const Matcher
   }
   return {};
 }
+
+namespace {
 
 // Keeps about `share` of the left features (and their bands), evenly spread: the detectors
 // list features in raster order, so every k-th of the list is spread over the image.
@@ -174,9 +176,10 @@ void KeepEvenlySpread(double share, std::vector<Eigen::Vector2f>* points,
   }
 }
 
-// The decoded winners as matches, each with its margins over the best other neuron of its row
-// (StereoMatch::potential_margin, correlation_margin): a winner alone in its row is measured
-// against a neuron held off by its inhibition (u = -2B) and a correlation of -1.
+}  // namespace
+
+// A winner alone in its row is measured against a neuron held off by its inhibition (u = -2B)
+// and a correlation of -1.
 std::vector<StereoMatch> MatchesWithMargins(const hnn::MatchingProblem& problem,
                                             const std::vector<hnn::DecodedMatch>& decoded,
                                             const std::vector<double>& u, double B) {
@@ -211,8 +214,6 @@ std::vector<StereoMatch> MatchesWithMargins(const hnn::MatchingProblem& problem,
   }
   return matches;
 }
-
-}  // namespace
 
 MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
                         const calib::StereoCalibration* calibration, const MatcherOptions& options,
@@ -266,7 +267,7 @@ MatchReport MatchStereo(const cv::Mat& left_grey, const cv::Mat& right_grey,
     }
     if (options.network_observer) options.network_observer(problem, options.energy, options.dynamics);
     try {
-      report.solve = SolveNetwork(problem, options, runtime, &report.engine_notice);
+      report.solve = SolveMatchingNetwork(problem, options, runtime, &report.engine_notice);
       break;
     } catch (const hnn::MemoryBudgetExceeded& over) {
       if (!options.fit_memory_budget || options.candidates.dense || attempt == 3) throw;

@@ -20,6 +20,7 @@
 #include "host/solve_report.h"
 #include "vision/stereo/candidates.h"
 #include "vision/stereo/coarse_to_fine.h"
+#include "vision/stereo/second_chance.h"
 #include "vision/features/features.h"
 
 namespace hnnstereo::vision {
@@ -122,6 +123,9 @@ struct StereoMatch {
   std::array<std::int32_t, 4> agreeing = {0, 0, 0, 0};
   /// |displacement - the plane of the neighbours' displacements within kSurfaceRadiusPx| (px).
   float surface_residual = kSurfaceResidualCapPx;
+  /// Matched by the second network over the features the first left unmatched
+  /// (vision/stereo/second_chance.h); its confidence carries SecondChanceOptions' penalty.
+  bool second_chance = false;
 };
 
 /// The confidence model fitted for the census data term (hnn-default, DataTermOptions): it weighs
@@ -144,6 +148,7 @@ void CountAgreeingNeighbours(std::vector<StereoMatch>& matches, float scale = 1.
 struct TimingMs {
   double features = 0, candidates = 0, network = 0, weights = 0, solve = 0, decode = 0, total = 0;
   double coarse = 0;  ///< the half-size match of a coarse-to-fine pair (part of candidates' time)
+  double second_chance = 0;  ///< the second network and its checks (a refinement: in total)
 };
 
 struct MatchReport {
@@ -161,6 +166,8 @@ struct MatchReport {
   /// the disparity levels each left feature searched, and those its left-right check searches.
   std::vector<DisparityBand> disparity_bands, check_bands;
   CoarseToFineReport coarse_to_fine;
+  /// What the second chance over the unmatched features did (RefinementOptions::second_chance).
+  SecondChanceReport second_chance;
   /// What fit_memory_budget chose, when the network over every left feature did not fit.
   struct MemoryFit {
     bool applied = false;
@@ -168,6 +175,19 @@ struct MatchReport {
     int left_features_matched = 0;   ///< the share of the n_left features the network matched
   } memory_fit;
 };
+
+/// Solves `problem` on options.engine with options.energy and options.dynamics; the opencl engine
+/// without a runtime falls back to the cpu engine and says so in `engine_notice`.
+hnn::SolveReport SolveMatchingNetwork(const hnn::MatchingProblem& problem,
+                                      const MatcherOptions& options, ocl::Runtime* runtime,
+                                      std::string* engine_notice);
+
+/// The decoded winners as matches, each with its margins over the best other neuron of its row
+/// (StereoMatch::potential_margin, correlation_margin; `u`: the settled potentials, B: the row
+/// inhibition). The neighbourhood counts and the confidence are left to the caller.
+std::vector<StereoMatch> MatchesWithMargins(const hnn::MatchingProblem& problem,
+                                            const std::vector<hnn::DecodedMatch>& decoded,
+                                            const std::vector<double>& u, double B);
 
 /// Runs the matcher on CV_8U grey images of equal size. `calibration` may be null only for
 /// rectified pairs. `runtime` is used by the opencl engine; when it is null that engine falls
