@@ -71,7 +71,8 @@ nlohmann::json MatchReportJson(const MatchReport& report, const MatcherOptions& 
     json["timing_ms"]["second_chance"] = report.timing_ms.second_chance;
     json["second_chance"] = {{"unmatched", s.unmatched}, {"retried", s.retried},
                              {"support", s.support},     {"neurons", s.neurons},
-                             {"matched", s.matched},     {"over_memory_budget", s.over_memory_budget}};
+                             {"matched", s.matched},     {"over_memory_budget", s.over_memory_budget},
+                             {"engine", s.engine}};
   }
   if (report.coarse_to_fine.applied) {
     const CoarseToFineReport& c = report.coarse_to_fine;

@@ -129,6 +129,7 @@ std::string SecondChanceOptions::Check() const {
   if (min_support < 1) return "second-chance min_support must be >= 1";
   if (band_margin < 0) return "second-chance band_margin must be >= 0";
   if (top_k < 0) return "second-chance top_k must be >= 0";
+  if (cpu_below_neurons < 0) return "second-chance cpu_below_neurons must be >= 0";
   if (!(min_model_confidence >= 0.0 && min_model_confidence <= 1.0)) {
     return "second-chance min_model_confidence must be in [0, 1] (got " +
            std::to_string(min_model_confidence) + ")";
@@ -194,8 +195,14 @@ void RetryUnmatchedFeatures(const ZnccMatcher& similarity,
   }
   std::string engine_notice;
   hnn::SolveReport solve;
+  MatcherOptions solver = matcher;
+  if (solver.engine == hnn::EngineKind::kOpenCL &&
+      (runtime == nullptr || problem.n_neurons() < options.cpu_below_neurons)) {
+    solver.engine = hnn::EngineKind::kCpu;
+  }
+  report->engine = std::string(EngineName(solver.engine));
   try {
-    solve = SolveMatchingNetwork(problem, matcher, runtime, &engine_notice);
+    solve = SolveMatchingNetwork(problem, solver, runtime, &engine_notice);
   } catch (const hnn::MemoryBudgetExceeded&) {
     report->over_memory_budget = true;
     report->ms = common::MillisecondsSince(start);

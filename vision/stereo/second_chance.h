@@ -46,6 +46,11 @@ struct SecondChanceOptions {
   /// first-pass matches of equal evidence: a winner among the levels its neighbours chose has a
   /// margin over fewer rivals than the model was fitted on (tests/vision/second_chance_test.cc).
   double confidence_scale = 0.5;
+  /// A second network of fewer neurons than this is solved by the cpu engine whatever
+  /// MatcherOptions::engine says: the opencl engine's fixed cost per network outweighs such a
+  /// solve (Teddy at 5,000 features, 3,000 neurons: 56-81 ms on PoCL, 16 ms on the cpu engine,
+  /// the same winners; 35,000 neurons: 666 against 800 ms). 0: always MatcherOptions::engine.
+  int cpu_below_neurons = 10000;
   std::string Check() const;
 };
 
@@ -59,6 +64,7 @@ struct SecondChanceReport {
   int matched = 0;    ///< second-chance matches kept (left-right check, min_model_confidence)
   /// The second network did not fit MatcherOptions::memory_budget_bytes: nothing was retried.
   bool over_memory_budget = false;
+  std::string engine;  ///< the engine that solved the second network ("" when none ran)
   double ms = 0.0;
 };
 
