@@ -186,7 +186,7 @@ TEST(SecondChance, OnTeddyAddsDensityMostlyRightAndRankedBelowTheFirstPass) {
   EXPECT_EQ(s.unmatched, with.n_left - static_cast<int>(without.matches.size()));
   EXPECT_GT(s.retried, s.unmatched / 2);
   EXPECT_EQ(with.matches.size(), without.matches.size() + static_cast<std::size_t>(s.matched));
-  EXPECT_GT(s.matched, with.n_left / 40);
+  EXPECT_GT(s.matched, with.n_left / 50);  // 2.4 % of Teddy's features from model confidence 0.5
   double first_confidence = 0.0, second_confidence = 0.0;
   int scored = 0, right = 0;
   for (const StereoMatch& m : with.matches) {
@@ -199,10 +199,7 @@ TEST(SecondChance, OnTeddyAddsDensityMostlyRightAndRankedBelowTheFirstPass) {
     right += std::abs(m.left.x() - m.right.x() - d) <= 1.0f ? 1 : 0;
   }
   ASSERT_GT(scored, 0);
-  // Most are right: kept from model confidence 0.3 (the census model fitted on dev/tune), the
-  // tuning pairs' added matches are 76 % right where StereoSGBM is 50 % right at their pixels;
-  // Teddy's are 66 % right.
-  EXPECT_GT(right, scored * 6 / 10) << right << " of " << scored;
+  EXPECT_GT(right, scored * 7 / 10) << right << " of " << scored;
   EXPECT_LT(second_confidence / s.matched,
             first_confidence / static_cast<double>(without.matches.size()));
 }
